@@ -1,0 +1,293 @@
+//! Decoding: from a window of camera frames to projector coordinate, amplitude, colour, validity.
+//!
+//! The work is split into three plain stages over a preallocated [`DecodeOutput`]:
+//!
+//! 1. [`phasor`]: per pixel, solve the window's linear system (paper eqs. 4 / 22) with the
+//!    precomputed pseudo-inverse of [`solver::WindowSolver`]; write wrapped phases, amplitudes, the
+//!    offset colour and, for CPS, the Chebyshev unit phasor.
+//! 2. [`smooth`]: for the robust CPS unwrap only, average the unit phasor over an edge-aware
+//!    neighbourhood (a recursive domain filter that stops at depth and colour edges).
+//! 3. [`unwrap`]: unwrap each wrapped phase with the coarse coordinate (eq. 8), combine the maps
+//!    weighted by amplitude, and mark invalid pixels with the reasons in [`invalid`].
+//!
+//! Rows are processed in bands in parallel with rayon; buffers are laid out row-planar
+//! (`[row][plane][x]`) so that every per-row loop runs over contiguous `f32` and vectorises.
+//! [`window::SlidingDecoder`] drives the stages over a stream of frames.
+
+pub mod fastmath;
+pub mod phasor;
+pub mod smooth;
+pub mod solver;
+pub mod unwrap;
+pub mod window;
+
+pub use solver::WindowSolver;
+pub use window::{SlidingDecoder, WindowOutcome};
+
+use crate::frame::{Frame, FrameError};
+use crate::pattern::PatternError;
+
+/// Rows per parallel band.
+pub(crate) const BAND_ROWS: usize = 8;
+
+/// Reasons a pixel is invalid; `0` means valid.
+pub mod invalid {
+    /// The smallest per-frequency amplitude is below `min_amplitude`: shadow, black surface, or
+    /// outside the projector's field.
+    pub const LOW_AMPLITUDE: u8 = 1;
+    /// A sample of the window reached the saturation level.
+    pub const SATURATED: u8 = 2;
+    /// The coarse estimate lies near half a period from the fine solution (eq. 8 rounding margin).
+    pub const UNWRAP_MARGIN: u8 = 4;
+    /// The unwrapped maps of the different frequencies disagree.
+    pub const DISAGREEMENT: u8 = 8;
+    /// Too few connected neighbours supported the robust coarse estimate.
+    pub const LOW_SUPPORT: u8 = 16;
+    /// The coordinate falls outside `[0, x_max)`.
+    pub const OUT_OF_RANGE: u8 = 32;
+}
+
+/// Errors of the decode module.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum DecodeError {
+    #[error(transparent)]
+    Pattern(#[from] PatternError),
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    #[error("pattern index {index} is out of range for a sequence of {len} images")]
+    PatternIndex { index: usize, len: usize },
+    #[error("window {order:?} gives {observations} observations for {unknowns} unknowns, or repeats a shift: it cannot be solved")]
+    Underdetermined {
+        order: Vec<usize>,
+        observations: usize,
+        unknowns: usize,
+    },
+    #[error("window has {observations} observations, at most {max} are supported")]
+    WindowTooLong { observations: usize, max: usize },
+    #[error("numerical failure while inverting the window system: {0}")]
+    Numerical(String),
+    #[error("the window needs {expected} frames, got {got}")]
+    WrongFrameCount { expected: usize, got: usize },
+    #[error("an RGB pattern sequence needs RGB camera frames, got {0} channel(s)")]
+    NeedsColourFrames(usize),
+    #[error("unwrap method {method:?} needs a Chebyshev sequence (frequencies n, n−1, n−2), this one has {frequencies:?}")]
+    NeedsChebyshev {
+        method: UnwrapMethod,
+        frequencies: Vec<u32>,
+    },
+    #[error("temporal unwrapping needs the unit frequency (lowest m ≤ 2), lowest here is {0}")]
+    NeedsUnitFrequency(u32),
+}
+
+/// How the wrapped phases are unwrapped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UnwrapMethod {
+    /// (a) The paper's per-pixel Chebyshev formula, eqs. 13–15, with its c/s branch.
+    ChebyshevPerPixel,
+    /// (b) Branch-free least-squares use of both Chebyshev equations, averaged over an edge-aware
+    /// neighbourhood before unwrapping. The default: the unit phase amplifies noise about n/2
+    /// times, so per-pixel unwrapping fails on a large share of pixels at ordinary camera noise.
+    ChebyshevRobust,
+    /// (c) Sequential temporal unwrapping (eq. 8) of a multi-frequency sequence.
+    Temporal,
+}
+
+/// Parameters of the edge-aware averaging of the unit phasor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SmoothingParams {
+    /// Per-pixel decay of the recursive filter; 0.7 gives about 11 effective samples per axis.
+    pub decay: f32,
+    /// Neighbours whose middle-frequency wrapped phase differs by more than this are not connected.
+    pub edge_phase_rad: f32,
+    /// Neighbours whose colour differs by more than this fraction (plus 6 gray levels) are not connected.
+    pub edge_colour_ratio: f32,
+    /// Pixels with less total filter weight than this are marked [`invalid::LOW_SUPPORT`].
+    pub min_support: f32,
+}
+
+impl Default for SmoothingParams {
+    fn default() -> Self {
+        Self {
+            decay: 0.7,
+            edge_phase_rad: 1.0,
+            edge_colour_ratio: 0.3,
+            min_support: 6.0,
+        }
+    }
+}
+
+/// Decoder settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DecodeParams {
+    pub unwrap: UnwrapMethod,
+    /// Smallest acceptable per-frequency amplitude, in the solver's intensity units (gray levels
+    /// before cross-talk).
+    pub min_amplitude: f32,
+    /// A sample at or above this level marks the pixel saturated.
+    pub saturation_level: u8,
+    /// Largest accepted distance of the eq. 8 argument from its nearest integer (0.5 is the limit).
+    pub max_rounding_residual: f32,
+    /// Largest accepted spread between the unwrapped maps of different frequencies, projector px.
+    pub max_disagreement_px: f32,
+    pub smoothing: SmoothingParams,
+}
+
+impl Default for DecodeParams {
+    fn default() -> Self {
+        Self {
+            unwrap: UnwrapMethod::ChebyshevRobust,
+            min_amplitude: 4.0,
+            saturation_level: 255,
+            max_rounding_residual: 0.3,
+            max_disagreement_px: 1.5,
+            smoothing: SmoothingParams::default(),
+        }
+    }
+}
+
+/// The decoded result of one window, and the scratch the stages reuse. Per-frequency and
+/// per-channel planes are row-planar: `plane[(row · planes + p) · width + x]`.
+#[derive(Debug, Clone)]
+pub struct DecodeOutput {
+    pub width: usize,
+    pub height: usize,
+    /// Number of distinct frequencies (planes of `phase_rad` and `amplitude`), descending `m`.
+    pub frequencies: usize,
+    /// Number of colour planes (3 for RGB sequences, 1 for gray).
+    pub channels: usize,
+    /// Centre time of the window's frames, seconds.
+    pub time_s: f64,
+    /// Wrapped phase of each frequency in `[0, 2π)`.
+    pub phase_rad: Vec<f32>,
+    /// Amplitude of each frequency.
+    pub amplitude: Vec<f32>,
+    /// Offset image: the scene colour without the pattern, gray levels.
+    pub colour: Vec<f32>,
+    /// Coarse coordinate from the unit phase, projector px (NaN where not computed).
+    pub coarse_px: Vec<f32>,
+    /// Final projector coordinate, projector px; NaN where invalid.
+    pub coordinate_px: Vec<f32>,
+    /// Invalid-reason bits of [`invalid`]; 0 where valid.
+    pub invalid: Vec<u8>,
+    pub(crate) unit_re: Vec<f32>,
+    pub(crate) unit_im: Vec<f32>,
+    pub(crate) support: Vec<f32>,
+    pub(crate) connect: Vec<u8>,
+    pub(crate) smooth_tmp: Vec<f32>,
+    pub(crate) band_scratch: Vec<f32>,
+    pub(crate) band_scratch_len: usize,
+}
+
+impl DecodeOutput {
+    /// Allocates every buffer for `solver`'s shape at `width`×`height`.
+    pub fn new(width: usize, height: usize, solver: &WindowSolver) -> Self {
+        let n = width * height;
+        let bands = height.div_ceil(BAND_ROWS);
+        let band_scratch_len = BAND_ROWS * width * (solver.observations + solver.unknowns + 3);
+        Self {
+            width,
+            height,
+            frequencies: solver.frequencies.len(),
+            channels: solver.channels,
+            time_s: 0.0,
+            phase_rad: vec![0.0; n * solver.frequencies.len()],
+            amplitude: vec![0.0; n * solver.frequencies.len()],
+            colour: vec![0.0; n * solver.channels],
+            coarse_px: vec![f32::NAN; n],
+            coordinate_px: vec![f32::NAN; n],
+            invalid: vec![0; n],
+            unit_re: vec![0.0; n],
+            unit_im: vec![0.0; n],
+            support: vec![0.0; n],
+            connect: vec![0; n],
+            smooth_tmp: vec![0.0; 3 * n],
+            band_scratch: vec![0.0; bands * band_scratch_len],
+            band_scratch_len,
+        }
+    }
+
+    /// Whether the buffers fit `solver` at `width`×`height`.
+    pub fn fits(&self, width: usize, height: usize, solver: &WindowSolver) -> bool {
+        self.width == width
+            && self.height == height
+            && self.frequencies == solver.frequencies.len()
+            && self.channels == solver.channels
+            && self.band_scratch_len >= BAND_ROWS * width * (solver.observations + solver.unknowns + 3)
+    }
+
+    #[inline]
+    fn planar(&self, planes: usize, plane: usize, x: usize, y: usize) -> usize {
+        (y * planes + plane) * self.width + x
+    }
+
+    /// Wrapped phase of frequency slot `f` at pixel `(x, y)`.
+    pub fn phase_at(&self, f: usize, x: usize, y: usize) -> f32 {
+        self.phase_rad[self.planar(self.frequencies, f, x, y)]
+    }
+
+    /// Amplitude of frequency slot `f` at pixel `(x, y)`.
+    pub fn amplitude_at(&self, f: usize, x: usize, y: usize) -> f32 {
+        self.amplitude[self.planar(self.frequencies, f, x, y)]
+    }
+
+    /// Offset colour of channel `c` at pixel `(x, y)`.
+    pub fn colour_at(&self, c: usize, x: usize, y: usize) -> f32 {
+        self.colour[self.planar(self.channels, c, x, y)]
+    }
+
+    /// Number of valid pixels.
+    pub fn valid_count(&self) -> usize {
+        self.invalid.iter().filter(|&&r| r == 0).count()
+    }
+}
+
+/// Decodes one window of `frames` (oldest first, matching `solver.order`) into `out`.
+pub fn decode_window(
+    solver: &WindowSolver,
+    frames: &[&Frame],
+    params: &DecodeParams,
+    chebyshev_n: Option<u32>,
+    out: &mut DecodeOutput,
+) -> Result<(), DecodeError> {
+    if frames.len() != solver.order.len() {
+        return Err(DecodeError::WrongFrameCount {
+            expected: solver.order.len(),
+            got: frames.len(),
+        });
+    }
+    let first = frames[0];
+    let (width, height) = (first.width, first.height);
+    if solver.channels == 3 && first.channels != 3 {
+        return Err(DecodeError::NeedsColourFrames(first.channels));
+    }
+    for frame in frames {
+        frame.check_shape(width, height, first.channels)?;
+    }
+    match params.unwrap {
+        UnwrapMethod::ChebyshevPerPixel | UnwrapMethod::ChebyshevRobust => {
+            if chebyshev_n.is_none() || solver.frequencies.len() != 3 {
+                return Err(DecodeError::NeedsChebyshev {
+                    method: params.unwrap,
+                    frequencies: solver.frequencies.clone(),
+                });
+            }
+        }
+        UnwrapMethod::Temporal => {
+            let lowest = solver.frequencies.last().copied().unwrap_or(0);
+            if lowest > 2 {
+                return Err(DecodeError::NeedsUnitFrequency(lowest));
+            }
+        }
+    }
+    if !out.fits(width, height, solver) {
+        *out = DecodeOutput::new(width, height, solver);
+    }
+    out.time_s = frames.iter().map(|f| f.time_s).sum::<f64>() / frames.len() as f64;
+    let chebyshev = params.unwrap != UnwrapMethod::Temporal;
+    phasor::solve_phasors(solver, frames, params, chebyshev, out);
+    if params.unwrap == UnwrapMethod::ChebyshevRobust {
+        smooth::smooth_unit_phasor(out, &params.smoothing);
+    }
+    unwrap::unwrap_and_combine(solver, params, chebyshev_n, out);
+    Ok(())
+}

@@ -1,0 +1,182 @@
+//! Stage 1: per-pixel solve of the window system, wrapped phases, amplitudes, colour and the
+//! Chebyshev unit phasor.
+//!
+//! Each band of rows unpacks its observations into planar `f32` rows, multiplies them by `M⁺`
+//! plane by plane (contiguous loops that vectorise), then derives per pixel:
+//!
+//! * `phase_f = atan2(V_f, U_f)` in `[0, 2π)` and `amplitude_f = |U_f + iV_f|`;
+//! * for CPS, with `z_f = U_f + iV_f` (slots 0, 1, 2 = frequencies n, n−1, n−2), the unit phasor
+//!   `w = z_0·z̄_1 + z_1·z̄_2`. Both terms equal `a·a'·e^{i f_1 x}` (f_1 = π/x_max), and
+//!   `Re w`, `Im w` are exactly the least-squares combinations of the paper's cosine and sine
+//!   Chebyshev equations (eq. 13 and its sine counterpart): the branch-free estimate of method (b).
+//!   Its angle lies in `[0, π)` because `x ∈ [0, x_max)`.
+
+use super::fastmath::phase_0_tau;
+use super::{invalid, DecodeOutput, DecodeParams, WindowSolver, BAND_ROWS};
+use crate::frame::Frame;
+use rayon::prelude::*;
+
+/// Runs stage 1 over the whole image.
+pub(crate) fn solve_phasors(
+    solver: &WindowSolver,
+    frames: &[&Frame],
+    params: &DecodeParams,
+    chebyshev: bool,
+    out: &mut DecodeOutput,
+) {
+    let w = out.width;
+    let nf = out.frequencies;
+    let nc = out.channels;
+    let scratch_len = out.band_scratch_len;
+    let band_px = BAND_ROWS * w;
+    out.phase_rad
+        .par_chunks_mut(band_px * nf)
+        .zip(out.amplitude.par_chunks_mut(band_px * nf))
+        .zip(out.colour.par_chunks_mut(band_px * nc))
+        .zip(out.unit_re.par_chunks_mut(band_px))
+        .zip(out.unit_im.par_chunks_mut(band_px))
+        .zip(out.support.par_chunks_mut(band_px))
+        .zip(out.invalid.par_chunks_mut(band_px))
+        .zip(out.band_scratch.par_chunks_mut(scratch_len))
+        .enumerate()
+        .for_each(
+            |(band, (((((((phase, amp), colour), re), im), support), flags), scratch))| {
+                let rows = flags.len() / w;
+                for r in 0..rows {
+                    let y = band * BAND_ROWS + r;
+                    let row = RowOut {
+                        phase: &mut phase[r * nf * w..(r + 1) * nf * w],
+                        amp: &mut amp[r * nf * w..(r + 1) * nf * w],
+                        colour: &mut colour[r * nc * w..(r + 1) * nc * w],
+                        re: &mut re[r * w..(r + 1) * w],
+                        im: &mut im[r * w..(r + 1) * w],
+                        support: &mut support[r * w..(r + 1) * w],
+                        flags: &mut flags[r * w..(r + 1) * w],
+                    };
+                    solve_row(solver, frames, params, chebyshev, y, w, scratch, row);
+                }
+            },
+        );
+}
+
+struct RowOut<'a> {
+    phase: &'a mut [f32],
+    amp: &'a mut [f32],
+    colour: &'a mut [f32],
+    re: &'a mut [f32],
+    im: &'a mut [f32],
+    support: &'a mut [f32],
+    flags: &'a mut [u8],
+}
+
+#[allow(clippy::too_many_arguments, reason = "a stage kernel over one row's typed buffers")]
+fn solve_row(
+    solver: &WindowSolver,
+    frames: &[&Frame],
+    params: &DecodeParams,
+    chebyshev: bool,
+    y: usize,
+    w: usize,
+    scratch: &mut [f32],
+    row: RowOut<'_>,
+) {
+    let n_obs = solver.observations;
+    let n_u = solver.unknowns;
+    let (obs, rest) = scratch.split_at_mut(n_obs * w);
+    let (u, rest) = rest.split_at_mut(n_u * w);
+    let saturated = &mut rest[..w];
+    saturated.fill(0.0);
+    let sat_level = params.saturation_level;
+
+    // Unpack observations into planes: plane k·channels + j holds frame k, camera channel j.
+    for (k, frame) in frames.iter().enumerate() {
+        let src_channels = frame.channels;
+        let src = &frame.data[y * w * src_channels..(y + 1) * w * src_channels];
+        if solver.channels == src_channels {
+            for j in 0..src_channels {
+                let plane = &mut obs[(k * src_channels + j) * w..(k * src_channels + j + 1) * w];
+                for (x, v) in plane.iter_mut().enumerate() {
+                    let s = src[x * src_channels + j];
+                    *v = f32::from(s);
+                    if s >= sat_level {
+                        saturated[x] = 1.0;
+                    }
+                }
+            }
+        } else {
+            // Gray patterns seen by a colour camera: decode the channel mean.
+            let plane = &mut obs[k * w..(k + 1) * w];
+            for (x, v) in plane.iter_mut().enumerate() {
+                let px = &src[x * 3..x * 3 + 3];
+                *v = (f32::from(px[0]) + f32::from(px[1]) + f32::from(px[2])) / 3.0;
+                if px.iter().any(|&s| s >= sat_level) {
+                    saturated[x] = 1.0;
+                }
+            }
+        }
+    }
+
+    // u = M⁺ · obs, one unknown plane at a time.
+    for q in 0..n_u {
+        let uq = &mut u[q * w..(q + 1) * w];
+        uq.fill(0.0);
+        for o in 0..n_obs {
+            let coeff = solver.pinv[q * n_obs + o];
+            let plane = &obs[o * w..(o + 1) * w];
+            for (acc, &v) in uq.iter_mut().zip(plane) {
+                *acc += coeff * v;
+            }
+        }
+    }
+
+    let nc = solver.channels;
+    let nf = solver.frequencies.len();
+    row.colour.copy_from_slice(&u[..nc * w]);
+    row.re.fill(0.0);
+    row.im.fill(0.0);
+    for f in 0..nf {
+        let cu = &u[solver.cos_unknown(f) * w..(solver.cos_unknown(f) + 1) * w];
+        let sv = &u[(solver.cos_unknown(f) + 1) * w..(solver.cos_unknown(f) + 2) * w];
+        let phase = &mut row.phase[f * w..(f + 1) * w];
+        let amp = &mut row.amp[f * w..(f + 1) * w];
+        for x in 0..w {
+            phase[x] = phase_0_tau(sv[x], cu[x]);
+            amp[x] = (cu[x] * cu[x] + sv[x] * sv[x]).sqrt();
+        }
+    }
+    if chebyshev && nf == 3 {
+        let at = |f: usize, x: usize| {
+            let c = solver.cos_unknown(f);
+            (u[c * w + x], u[(c + 1) * w + x])
+        };
+        for x in 0..w {
+            let (c0, s0) = at(0, x);
+            let (c1, s1) = at(1, x);
+            let (c2, s2) = at(2, x);
+            // z0·conj(z1) + z1·conj(z2)
+            row.re[x] = c0 * c1 + s0 * s1 + c1 * c2 + s1 * s2;
+            row.im[x] = s0 * c1 - c0 * s1 + s1 * c2 - c1 * s2;
+        }
+    }
+    for x in 0..w {
+        let mut min_amp = f32::INFINITY;
+        for f in 0..nf {
+            min_amp = min_amp.min(row.amp[f * w + x]);
+        }
+        let mut reason = 0u8;
+        if !(min_amp >= params.min_amplitude) {
+            reason |= invalid::LOW_AMPLITUDE;
+        }
+        if saturated[x] > 0.0 {
+            reason |= invalid::SATURATED;
+        }
+        row.flags[x] = reason;
+        if reason == 0 {
+            row.support[x] = 1.0;
+        } else {
+            row.support[x] = 0.0;
+            row.re[x] = 0.0;
+            row.im[x] = 0.0;
+        }
+    }
+}

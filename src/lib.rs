@@ -1,0 +1,17 @@
+//! tremorscan core: Chebyshev Phase Shifting structured light for measuring hand shape, colour and
+//! tremor at 121 frames per second.
+//!
+//! Modules, from the bottom up (see `ARCHITECTURE.md`):
+//! * [`pattern`]: one description for every phase-shifting codec, builders and pattern rendering.
+//! * [`frame`]: 8-bit camera frames with time and pattern index.
+//! * [`color`]: the cross-talk model `c = A·p + b`.
+//! * [`geometry`]: lens models and rigid transforms.
+//! * [`decode`]: window solve, robust unwrapping, combination, validity, sliding window.
+//! * [`rig`]: the virtual projector–camera rig with a trembling hand and exact ground truth.
+
+pub mod color;
+pub mod decode;
+pub mod frame;
+pub mod geometry;
+pub mod pattern;
+pub mod rig;
