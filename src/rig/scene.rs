@@ -1,0 +1,399 @@
+//! The virtual scene: a textured table plane and a hand (ellipsoid palm, capsule fingers) whose
+//! fingers tremble, all in the camera frame (mm, z forward, looking down at the table).
+//!
+//! Each finger rotates about its knuckle by `α(t) = (A_tip / L)·sin(2π·f·t + φ_finger)`, so its tip
+//! moves about `A_tip` along the optical axis; the whole hand can also oscillate vertically.
+//! [`Scene::at`] poses every primitive at one instant, so each camera frame is rendered at its own
+//! time and motion inside the decode window is real.
+
+use nalgebra::{Rotation3, Unit, Vector3};
+use std::f64::consts::TAU;
+
+type V3 = Vector3<f64>;
+
+/// Surface material of a hit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Material {
+    Table,
+    Skin,
+}
+
+/// Tremor of the hand.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tremor {
+    pub frequency_hz: f64,
+    /// Peak displacement of each fingertip along the optical axis, mm.
+    pub tip_amplitude_mm: f64,
+    /// Peak vertical displacement of the whole hand, mm.
+    pub hand_amplitude_mm: f64,
+}
+
+/// What the scene contains.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneConfig {
+    /// Distance of the table from the camera centre along the optical axis, mm.
+    pub table_distance_mm: f64,
+    /// Table tilt about the camera x axis, radians.
+    pub table_tilt_rad: f64,
+    /// Print a colour texture on the table.
+    pub table_texture: bool,
+    /// The hand, or `None` for a bare table.
+    pub hand: Option<Tremor>,
+    /// Height of the palm centre above the table, mm.
+    pub hand_height_mm: f64,
+}
+
+impl SceneConfig {
+    /// A hand with the paper's typical parkinsonian tremor (5.3 Hz, 2 mm at the fingertips).
+    pub fn trembling_hand() -> Self {
+        Self {
+            table_distance_mm: 500.0,
+            table_tilt_rad: 0.05,
+            table_texture: true,
+            hand: Some(Tremor {
+                frequency_hz: 5.3,
+                tip_amplitude_mm: 2.0,
+                hand_amplitude_mm: 0.3,
+            }),
+            hand_height_mm: 45.0,
+        }
+    }
+
+    /// A bare, untextured, untilted plane: the simplest accuracy target.
+    pub fn plane() -> Self {
+        Self {
+            table_distance_mm: 500.0,
+            table_tilt_rad: 0.0,
+            table_texture: false,
+            hand: None,
+            hand_height_mm: 0.0,
+        }
+    }
+}
+
+/// Names of the tracked surface points, in the order of [`PosedScene::points`].
+pub const POINT_NAMES: [&str; 6] = [
+    "index_tip",
+    "middle_tip",
+    "ring_tip",
+    "little_tip",
+    "thumb_tip",
+    "back_of_hand",
+];
+
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Capsule {
+    a: V3,
+    b: V3,
+    radius: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Ellipsoid {
+    centre: V3,
+    radii: V3,
+}
+
+/// A ray hit.
+#[derive(Debug, Clone, Copy)]
+pub struct Hit {
+    pub distance_mm: f64,
+    pub normal: V3,
+    pub material: Material,
+}
+
+/// The scene posed at one instant.
+#[derive(Debug, Clone)]
+pub struct PosedScene {
+    table_point: V3,
+    table_normal: V3,
+    pub table_texture: bool,
+    palm: Option<Ellipsoid>,
+    capsules: Vec<Capsule>,
+    bound_centre: V3,
+    bound_radius: f64,
+    /// True positions of [`POINT_NAMES`] (empty without a hand), camera frame, mm.
+    pub points: Vec<V3>,
+}
+
+/// Knuckle offset from the palm centre (x, y), proximal and distal lengths, radius, tremor phase.
+const FINGERS: [(f64, f64, f64, f64, f64, f64); 4] = [
+    (-40.0, -27.0, 44.0, 42.0, 8.5, 0.0),
+    (-40.0, -9.0, 49.0, 47.0, 9.0, 0.15),
+    (-40.0, 9.0, 46.0, 43.0, 8.5, 0.3),
+    (-37.0, 26.0, 37.0, 33.0, 7.5, 0.45),
+];
+
+/// The scene description and its pose at any time.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub config: SceneConfig,
+}
+
+impl Scene {
+    pub fn new(config: SceneConfig) -> Self {
+        Self { config }
+    }
+
+    /// Poses every primitive at `time_s`.
+    pub fn at(&self, time_s: f64) -> PosedScene {
+        let c = &self.config;
+        let table_normal = V3::new(0.0, c.table_tilt_rad.sin(), -c.table_tilt_rad.cos());
+        let table_point = V3::new(0.0, 0.0, c.table_distance_mm);
+        let mut posed = PosedScene {
+            table_point,
+            table_normal,
+            table_texture: c.table_texture,
+            palm: None,
+            capsules: Vec::with_capacity(10),
+            bound_centre: V3::zeros(),
+            bound_radius: 0.0,
+            points: Vec::with_capacity(POINT_NAMES.len()),
+        };
+        let Some(tremor) = c.hand else {
+            return posed;
+        };
+        let omega_t = TAU * tremor.frequency_hz * time_s;
+        let lift = tremor.hand_amplitude_mm * omega_t.sin();
+        let palm_centre = V3::new(45.0, 0.0, c.table_distance_mm - c.hand_height_mm + lift);
+        let palm = Ellipsoid {
+            centre: palm_centre,
+            radii: V3::new(46.0, 42.0, 12.0),
+        };
+        let up = V3::new(0.0, 0.0, -1.0);
+        let mut tips = Vec::with_capacity(5);
+        for &(kx, ky, l1, l2, radius, phase) in &FINGERS {
+            let knuckle = palm_centre + V3::new(kx, ky, 1.0);
+            // Rest pose: along −x, curled slightly down towards the table.
+            let rest_d1 = V3::new(-1.0, 0.0, 0.12).normalize();
+            let rest_d2 = V3::new(-1.0, 0.0, 0.30).normalize();
+            // A rotation α about y moves a point at horizontal arm |Δx| by α·|Δx| along z: choose
+            // α so that the tracked tip point moves by exactly the configured amplitude.
+            let rest_joint = knuckle + rest_d1 * l1;
+            let rest_tracked = surface_above(rest_joint, rest_joint + rest_d2 * l2, radius, 0.8, up);
+            let arm = (rest_tracked.x - knuckle.x).abs();
+            let alpha = (tremor.tip_amplitude_mm / arm).asin() * (omega_t + TAU * phase).sin();
+            let rot = Rotation3::from_axis_angle(&Vector3::y_axis(), alpha);
+            let joint = knuckle + rot * rest_d1 * l1;
+            let tip = joint + rot * rest_d2 * l2;
+            posed.capsules.push(Capsule { a: knuckle, b: joint, radius });
+            posed.capsules.push(Capsule { a: joint, b: tip, radius });
+            tips.push(surface_above(joint, tip, radius, 0.8, up));
+        }
+        // Thumb: two segments towards +y, trembling with the hand only.
+        let base = palm_centre + V3::new(-8.0, 34.0, 3.0);
+        let joint = base + V3::new(-22.0, 22.0, 4.0);
+        let tip = joint + V3::new(-24.0, 8.0, 6.0);
+        posed.capsules.push(Capsule { a: base, b: joint, radius: 10.5 });
+        posed.capsules.push(Capsule { a: joint, b: tip, radius: 9.5 });
+        tips.push(surface_above(joint, tip, 9.5, 0.8, up));
+        posed.points.extend(tips);
+        posed.points.push(palm_centre + V3::new(0.0, 0.0, -palm.radii.z));
+        posed.palm = Some(palm);
+        posed.bound_centre = palm_centre + V3::new(-40.0, 10.0, 0.0);
+        posed.bound_radius = 140.0;
+        posed
+    }
+}
+
+/// The surface point of capsule `a→b` at fraction `s` along its axis, on the side facing `up`.
+fn surface_above(a: V3, b: V3, radius: f64, s: f64, up: V3) -> V3 {
+    let axis = (b - a).normalize();
+    let side = Unit::new_normalize(up - axis * up.dot(&axis));
+    a + (b - a) * s + side.into_inner() * radius
+}
+
+impl PosedScene {
+    /// Nearest hit along `origin + t·dir` (`dir` unit) with `t > 1e-6`.
+    pub fn intersect(&self, origin: &V3, dir: &V3) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        let denom = dir.dot(&self.table_normal);
+        if denom.abs() > 1e-12 {
+            let t = (self.table_point - origin).dot(&self.table_normal) / denom;
+            if t > 1e-6 {
+                best = Some(Hit {
+                    distance_mm: t,
+                    normal: self.table_normal,
+                    material: Material::Table,
+                });
+            }
+        }
+        if self.palm.is_some() && self.ray_hits_bound(origin, dir) {
+            let limit = best.map_or(f64::INFINITY, |h| h.distance_mm);
+            if let Some(hit) = self.intersect_hand(origin, dir, limit) {
+                best = Some(hit);
+            }
+        }
+        best
+    }
+
+    /// Whether the hand blocks the segment from `origin` to `origin + max_t·dir`.
+    pub fn hand_occludes(&self, origin: &V3, dir: &V3, max_t: f64) -> bool {
+        self.palm.is_some()
+            && self.ray_hits_bound(origin, dir)
+            && self.intersect_hand(origin, dir, max_t).is_some()
+    }
+
+    fn ray_hits_bound(&self, origin: &V3, dir: &V3) -> bool {
+        let oc = origin - self.bound_centre;
+        let b = oc.dot(dir);
+        let c = oc.norm_squared() - self.bound_radius * self.bound_radius;
+        c < 0.0 || (b < 0.0 && b * b - c >= 0.0)
+    }
+
+    fn intersect_hand(&self, origin: &V3, dir: &V3, limit: f64) -> Option<Hit> {
+        let mut best_t = limit;
+        let mut best_normal = None;
+        if let Some(palm) = &self.palm {
+            if let Some((t, n)) = palm.intersect(origin, dir) {
+                if t < best_t {
+                    best_t = t;
+                    best_normal = Some(n);
+                }
+            }
+        }
+        for capsule in &self.capsules {
+            if let Some((t, n)) = capsule.intersect(origin, dir) {
+                if t < best_t {
+                    best_t = t;
+                    best_normal = Some(n);
+                }
+            }
+        }
+        best_normal.map(|normal| Hit {
+            distance_mm: best_t,
+            normal,
+            material: Material::Skin,
+        })
+    }
+
+    /// Table albedo (R, G, B) at a table point: light paper with a printed pattern.
+    pub fn table_albedo(&self, p: &V3) -> [f64; 3] {
+        if !self.table_texture {
+            return [0.72, 0.70, 0.66];
+        }
+        let checker = ((p.x / 40.0).floor() + (p.y / 40.0).floor()).rem_euclid(2.0);
+        let stripe = 0.5 + 0.5 * (p.x * 0.11 + p.y * 0.07).sin();
+        let k = 0.78 + 0.12 * checker;
+        [k * (0.80 - 0.10 * stripe), k * 0.74, k * (0.58 + 0.18 * stripe)]
+    }
+}
+
+/// Skin albedo per projector channel (R, G, B).
+pub const SKIN_ALBEDO: [f64; 3] = [0.78, 0.55, 0.44];
+
+impl Ellipsoid {
+    fn intersect(&self, origin: &V3, dir: &V3) -> Option<(f64, V3)> {
+        let o = (origin - self.centre).component_div(&self.radii);
+        let d = dir.component_div(&self.radii);
+        let a = d.norm_squared();
+        let b = o.dot(&d);
+        let c = o.norm_squared() - 1.0;
+        let h = b * b - a * c;
+        if h < 0.0 {
+            return None;
+        }
+        let t = (-b - h.sqrt()) / a;
+        if t <= 1e-6 {
+            return None;
+        }
+        let p = origin + dir * t - self.centre;
+        let r2 = self.radii.component_mul(&self.radii);
+        Some((t, p.component_div(&r2).normalize()))
+    }
+}
+
+impl Capsule {
+    fn intersect(&self, origin: &V3, dir: &V3) -> Option<(f64, V3)> {
+        let ba = self.b - self.a;
+        let oa = origin - self.a;
+        let baba = ba.dot(&ba);
+        let bard = ba.dot(dir);
+        let baoa = ba.dot(&oa);
+        let rdoa = dir.dot(&oa);
+        let oaoa = oa.dot(&oa);
+        let r2 = self.radius * self.radius;
+        let a = baba - bard * bard;
+        let b = baba * rdoa - baoa * bard;
+        let c = baba * oaoa - baoa * baoa - r2 * baba;
+        let h = b * b - a * c;
+        if h < 0.0 {
+            return None;
+        }
+        let mut t = f64::INFINITY;
+        if a > 1e-12 {
+            let tb = (-b - h.sqrt()) / a;
+            let y = baoa + tb * bard;
+            if y > 0.0 && y < baba && tb > 1e-6 {
+                t = tb;
+            }
+        }
+        if !t.is_finite() {
+            // Hemispherical caps.
+            for centre in [self.a, self.b] {
+                let oc = origin - centre;
+                let bb = oc.dot(dir);
+                let cc = oc.norm_squared() - r2;
+                let hh = bb * bb - cc;
+                if hh > 0.0 {
+                    let tc = -bb - hh.sqrt();
+                    if tc > 1e-6 && tc < t {
+                        t = tc;
+                    }
+                }
+            }
+        }
+        if !t.is_finite() {
+            return None;
+        }
+        let p = origin + dir * t;
+        let s = ((p - self.a).dot(&ba) / baba).clamp(0.0, 1.0);
+        let normal = (p - (self.a + ba * s)).normalize();
+        Some((t, normal))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn capsule_hits_body_and_caps() {
+        let cap = Capsule {
+            a: V3::new(0.0, 0.0, 100.0),
+            b: V3::new(50.0, 0.0, 100.0),
+            radius: 10.0,
+        };
+        let (t, n) = cap.intersect(&V3::new(25.0, 0.0, 0.0), &V3::z()).unwrap();
+        assert!((t - 90.0).abs() < 1e-9 && (n + V3::z()).norm() < 1e-9);
+        let (t, _) = cap.intersect(&V3::new(-5.0, 0.0, 0.0), &V3::z()).unwrap();
+        assert!((t - (100.0 - 75f64.sqrt())).abs() < 1e-9);
+        assert!(cap.intersect(&V3::new(-11.0, 0.0, 0.0), &V3::z()).is_none());
+    }
+
+    #[test]
+    fn fingertips_tremble_at_the_set_amplitude() {
+        let scene = Scene::new(SceneConfig {
+            hand: Some(Tremor {
+                frequency_hz: 5.0,
+                tip_amplitude_mm: 2.0,
+                hand_amplitude_mm: 0.0,
+            }),
+            ..SceneConfig::trembling_hand()
+        });
+        let zs: Vec<f64> = (0..200).map(|i| scene.at(i as f64 / 1000.0).points[0].z).collect();
+        let span = zs.iter().cloned().fold(f64::MIN, f64::max) - zs.iter().cloned().fold(f64::MAX, f64::min);
+        // Peak-to-peak of the tracked tip point is 2·A up to the sampling of the sine (1 ms of
+        // 200 ms) and the second-order term of the rotation.
+        assert!((span - 4.0).abs() < 0.05, "span {span}");
+    }
+
+    #[test]
+    fn the_hand_is_seen_from_the_camera() {
+        let posed = Scene::new(SceneConfig::trembling_hand()).at(0.0);
+        let to_tip = posed.points[0].normalize();
+        let hit = posed.intersect(&V3::zeros(), &to_tip).unwrap();
+        assert_eq!(hit.material, Material::Skin);
+        assert!((hit.distance_mm - posed.points[0].norm()).abs() < 1.0);
+    }
+}
