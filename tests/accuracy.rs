@@ -1,0 +1,69 @@
+//! Accuracy of the CPS-RGB decoder against the virtual rig's ground truth.
+#![allow(clippy::unwrap_used, reason = "tests")]
+
+mod common;
+
+use common::{checks_off, decode_once, still_hand_rig};
+use tremorscan::decode::{DecodeParams, UnwrapMethod};
+use tremorscan::rig::{NoiseModel, RigConfig, SceneConfig};
+
+#[test]
+fn noise_free_plane_is_within_five_hundredths_of_a_pixel() {
+    let mut config = RigConfig::paper(640, 400).unwrap();
+    config.scene = SceneConfig::plane();
+    config.noise = NoiseModel::none();
+    let seq = config.default_sequence().unwrap();
+    let (acc, _) = decode_once(config, &seq, DecodeParams::default());
+    // Without noise only quantisation remains: the 6-bit projector levels (step 1/63 of the
+    // 0..1 range) give a deterministic phase ripple of about 0.0075 rad per frequency, i.e.
+    // 0.033 px of a 28 px period, averaged over three frequencies to about 0.02 px; the 8-bit
+    // camera adds about 0.015 px. The brief's bound is 0.05 px RMS.
+    assert!(acc.rms_px < 0.05, "{acc:?}");
+    assert_eq!(acc.unwrap_errors, 0, "{acc:?}");
+    assert!(acc.coverage() > 0.99, "{acc:?}");
+}
+
+#[test]
+fn robust_unwrap_survives_two_gray_levels_of_noise_where_the_paper_formula_fails() {
+    let config = still_hand_rig(NoiseModel::gaussian(2.0));
+    let seq = config.default_sequence().unwrap();
+    let robust = DecodeParams::default();
+    let paper = DecodeParams {
+        unwrap: UnwrapMethod::ChebyshevPerPixel,
+        ..DecodeParams::default()
+    };
+    let (robust_acc, _) = decode_once(config.clone(), &seq, robust);
+    let (paper_acc, _) = decode_once(config, &seq, checks_off(paper));
+    // Brief: < 0.5 % of valid pixels with unwrap errors for the robust method at σ = 2.
+    assert!(robust_acc.unwrap_error_rate() < 0.005, "{robust_acc:?}");
+    assert!(robust_acc.coverage() > 0.95, "{robust_acc:?}");
+    // The per-pixel formula fails on tens of percent: its coarse error on the dark blue skin
+    // channel (amplitude ≈ 20 gray levels) has σ ≈ 16 px against a half period of 14 px.
+    assert!(paper_acc.unwrap_error_rate() > 0.10, "{paper_acc:?}");
+    // No valid pixel may come from a shadow.
+    assert_eq!(robust_acc.valid_unlit, 0, "{robust_acc:?}");
+}
+
+#[test]
+fn validity_checks_remove_the_rare_failures_the_robust_method_still_makes() {
+    let config = still_hand_rig(NoiseModel::gaussian(4.0));
+    let seq = config.default_sequence().unwrap();
+    let (open, _) = decode_once(config.clone(), &seq, checks_off(DecodeParams::default()));
+    let (checked, out) = decode_once(config, &seq, DecodeParams::default());
+    assert!(checked.unwrap_errors * 10 < open.unwrap_errors.max(10), "{open:?} vs {checked:?}");
+    // Invalid pixels are NaN in the coordinate map, valid ones finite.
+    for (c, &r) in out.coordinate_px.iter().zip(&out.invalid) {
+        assert_eq!(c.is_finite(), r == 0);
+    }
+}
+
+#[test]
+fn offset_image_is_the_scene_colour() {
+    let config = still_hand_rig(NoiseModel::none());
+    let seq = config.default_sequence().unwrap();
+    let (_, out) = decode_once(config, &seq, DecodeParams::default());
+    // A skin pixel on the back of the hand: red dominates, blue is darkest (SKIN_ALBEDO).
+    let (x, y) = (out.width * 50 / 100, out.height / 2);
+    let (r, g, b) = (out.colour_at(0, x, y), out.colour_at(1, x, y), out.colour_at(2, x, y));
+    assert!(r > g && g > b && b > 10.0, "colour {r} {g} {b}");
+}

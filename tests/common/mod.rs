@@ -1,0 +1,54 @@
+//! Shared helpers of the integration tests: render a window with the virtual rig and decode it.
+#![allow(dead_code, reason = "each test binary uses a different subset of the helpers")]
+
+use tremorscan::decode::{DecodeOutput, DecodeParams, SlidingDecoder, WindowOutcome};
+use tremorscan::pattern::PatternSequence;
+use tremorscan::rig::evaluate::{compare, Accuracy};
+use tremorscan::rig::{GroundTruth, NoiseModel, RigConfig, SceneConfig, VirtualRig};
+
+/// The paper rig at 640×400 with a still hand (no tremor) and the given noise.
+pub fn still_hand_rig(noise: NoiseModel) -> RigConfig {
+    let mut config = RigConfig::paper(640, 400).unwrap();
+    config.noise = noise;
+    config.scene = SceneConfig {
+        hand: config.scene.hand.map(|mut t| {
+            t.tip_amplitude_mm = 0.0;
+            t.hand_amplitude_mm = 0.0;
+            t
+        }),
+        ..config.scene
+    };
+    config
+}
+
+/// Renders one full sequence of `seq` with `config`, decodes the window, and compares it with the
+/// truth of the middle frame. Returns the accuracy and the decoded output.
+pub fn decode_once(
+    config: RigConfig,
+    seq: &PatternSequence,
+    params: DecodeParams,
+) -> (Accuracy, DecodeOutput) {
+    let finest = *seq.distinct_frequencies().first().unwrap();
+    let half_period = seq.period_px(finest) / 2.0;
+    let rig = VirtualRig::new(config, seq.clone()).unwrap();
+    let mut decoder = SlidingDecoder::new(seq.clone(), rig.config.cross_talk, params).unwrap();
+    let len = seq.entries.len() as u64;
+    let mut frame = rig.blank_frame();
+    let mut truth = GroundTruth::default();
+    for i in 0..len {
+        let t = if i == len / 2 { Some(&mut truth) } else { None };
+        rig.render(i, &mut frame, t).unwrap();
+        let outcome = decoder.push(&frame).unwrap();
+        assert_eq!(matches!(outcome, WindowOutcome::Decoded(_)), i + 1 == len);
+    }
+    let out = decoder.output().unwrap().clone();
+    (compare(&out, &truth, half_period), out)
+}
+
+/// Decode parameters with every validity check after the signal checks switched off.
+pub fn checks_off(mut params: DecodeParams) -> DecodeParams {
+    params.max_rounding_residual = 0.5;
+    params.max_disagreement_px = f32::INFINITY;
+    params.smoothing.min_support = 0.0;
+    params
+}

@@ -1,0 +1,107 @@
+//! The sliding window: a moving scene decodes at every frame, stamped at the window centre.
+#![allow(clippy::unwrap_used, reason = "tests")]
+
+use tremorscan::decode::{DecodeError, DecodeParams, SlidingDecoder, WindowOutcome};
+use tremorscan::frame::Frame;
+use tremorscan::rig::evaluate::compare;
+use tremorscan::rig::{GroundTruth, RigConfig, VirtualRig};
+
+fn trembling_rig() -> VirtualRig {
+    let config = RigConfig::paper(640, 400).unwrap();
+    let seq = config.default_sequence().unwrap();
+    VirtualRig::new(config, seq).unwrap()
+}
+
+#[test]
+fn a_trembling_hand_decodes_at_every_frame() {
+    let rig = trembling_rig();
+    let half_period = rig.sequence.period_px(65) / 2.0;
+    let mut decoder =
+        SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, DecodeParams::default())
+            .unwrap();
+    let mut frames: Vec<Frame> = Vec::new();
+    let mut truths: Vec<GroundTruth> = Vec::new();
+    for i in 0..9u64 {
+        let mut frame = rig.blank_frame();
+        let mut truth = GroundTruth::default();
+        rig.render(i, &mut frame, Some(&mut truth)).unwrap();
+        let outcome = decoder.push(&frame).unwrap();
+        frames.push(frame);
+        truths.push(truth);
+        if i < 2 {
+            assert!(matches!(outcome, WindowOutcome::Filling { .. }));
+            continue;
+        }
+        let WindowOutcome::Decoded(out) = outcome else {
+            panic!("frame {i} did not decode: {outcome:?}");
+        };
+        // Stamped at the centre of frames i−2, i−1, i: the middle frame's time.
+        let centre = (frames[i as usize - 2].time_s + frames[i as usize].time_s) / 2.0;
+        assert!((out.time_s - centre).abs() < 1e-12);
+        assert!((out.time_s - truths[i as usize - 1].time_s).abs() < 1e-12);
+        // Against the truth at the window centre. The fingertips move up to 0.55 mm per frame;
+        // the symmetric window cancels the linear part of that motion, so the result stays close
+        // to the middle frame's geometry and no fringe order may be lost.
+        let acc = compare(out, &truths[i as usize - 1], half_period);
+        assert!(acc.unwrap_error_rate() < 0.005, "frame {i}: {acc:?}");
+        assert!(acc.coverage() > 0.95, "frame {i}: {acc:?}");
+        assert!(acc.rms_px < 0.25, "frame {i}: {acc:?}");
+    }
+    assert_eq!(decoder.decoded_windows, 7);
+}
+
+#[test]
+fn a_dropped_frame_is_reported_and_decoding_resumes() {
+    let rig = trembling_rig();
+    let mut decoder =
+        SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, DecodeParams::default())
+            .unwrap();
+    let mut frame = rig.blank_frame();
+    let mut outcomes = Vec::new();
+    for i in [0u64, 1, 2, 4, 5, 6] {
+        rig.render(i, &mut frame, None).unwrap();
+        outcomes.push(match decoder.push(&frame).unwrap() {
+            WindowOutcome::Filling { .. } => "filling",
+            WindowOutcome::Unsolvable { .. } => "unsolvable",
+            WindowOutcome::Decoded(_) => "decoded",
+        });
+    }
+    // Patterns 0 1 2 | 1 2 0: windows (1,2,1) and (2,1,2) repeat a shift.
+    assert_eq!(
+        outcomes,
+        ["filling", "filling", "decoded", "unsolvable", "unsolvable", "decoded"]
+    );
+    assert_eq!(decoder.unsolvable_windows, 2);
+}
+
+#[test]
+fn bad_frames_are_refused_with_a_clear_error() {
+    let rig = trembling_rig();
+    let mut decoder =
+        SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, DecodeParams::default())
+            .unwrap();
+    let mut frame = rig.blank_frame();
+    rig.render(0, &mut frame, None).unwrap();
+    decoder.push(&frame).unwrap();
+    let small = Frame::new(320, 200, 3).unwrap();
+    let err = decoder.push(&small).unwrap_err();
+    assert!(err.to_string().contains("expected 640×400×3"), "{err}");
+    let mut wrong_index = frame.clone();
+    wrong_index.pattern_index = 5;
+    assert_eq!(
+        decoder.push(&wrong_index).unwrap_err(),
+        DecodeError::PatternIndex { index: 5, len: 3 }
+    );
+    let gray = Frame::new(640, 400, 1).unwrap();
+    let mut fresh =
+        SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, DecodeParams::default())
+            .unwrap();
+    for i in 0..2 {
+        let mut g = gray.clone();
+        g.pattern_index = i;
+        fresh.push(&g).unwrap();
+    }
+    let mut g = gray;
+    g.pattern_index = 2;
+    assert_eq!(fresh.push(&g).unwrap_err(), DecodeError::NeedsColourFrames(1));
+}
