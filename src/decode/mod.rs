@@ -97,10 +97,13 @@ pub enum UnwrapMethod {
 pub struct SmoothingParams {
     /// Per-pixel decay of the recursive filter; 0.7 gives about 11 effective samples per axis.
     pub decay: f32,
-    /// Neighbours whose middle-frequency wrapped phase differs by more than this are not connected.
+    /// Neighbours whose wrapped phase of any frequency differs by more than this are not connected.
     pub edge_phase_rad: f32,
     /// Neighbours whose colour differs by more than this fraction (plus 6 gray levels) are not connected.
     pub edge_colour_ratio: f32,
+    /// Neighbours whose red or blue chromaticity (share of r + g + b) differs by more than this
+    /// are not connected: skin against most backgrounds.
+    pub edge_chromaticity: f32,
     /// Pixels with less total filter weight than this are marked [`invalid::LOW_SUPPORT`].
     pub min_support: f32,
 }
@@ -111,6 +114,7 @@ impl Default for SmoothingParams {
             decay: 0.7,
             edge_phase_rad: 1.0,
             edge_colour_ratio: 0.3,
+            edge_chromaticity: 0.03,
             min_support: 6.0,
         }
     }

@@ -9,7 +9,8 @@
 //!
 //! How: a recursive exponential filter (forward + backward, rows then columns), in the manner of
 //! a domain-transform filter. Two neighbours are *connected* when both are valid, their middle
-//! frequency wrapped phases differ by less than `edge_phase_rad` and their colours are similar;
+//! frequency's wrapped phase differs by less than `edge_phase_rad` and their brightness and
+//! chromaticity are similar;
 //! the recursion does not cross unconnected pairs, so depth edges (where the phase jumps) and
 //! object boundaries (where the colour changes) stop the averaging. The filter costs O(1) per
 //! pixel whatever its reach. The phasor magnitude (∝ amplitude²) weights bright pixels more.
@@ -40,44 +41,96 @@ fn compute_connectivity(out: &mut DecodeOutput, params: &SmoothingParams) {
     let h = out.height;
     let nf = out.frequencies;
     let nc = out.channels;
-    // The middle frequency (n−1 for CPS) is the guide phase.
-    let guide = nf / 2;
     let phase = &out.phase_rad;
     let colour = &out.colour;
     let support = &out.support;
-    let max_phase = params.edge_phase_rad;
-    let ratio = params.edge_colour_ratio;
-    let similar = |p: usize, q: usize, py: usize, qy: usize, px: usize, qx: usize| -> bool {
-        if support[p] == 0.0 || support[q] == 0.0 {
-            return false;
-        }
-        let pp = phase[(py * nf + guide) * w + px];
-        let pq = phase[(qy * nf + guide) * w + qx];
-        if wrapped_diff(pp, pq) > max_phase {
-            return false;
-        }
-        (0..nc).all(|c| {
-            let a = colour[(py * nc + c) * w + px];
-            let b = colour[(qy * nc + c) * w + qx];
-            (a - b).abs() <= ratio * a.abs().max(b.abs()) + 6.0
-        })
-    };
     out.connect
         .par_chunks_mut(w)
         .enumerate()
-        .for_each(|(y, row)| {
-            for (x, bits) in row.iter_mut().enumerate() {
-                let p = y * w + x;
-                let mut b = 0u8;
-                if x + 1 < w && similar(p, p + 1, y, y, x, x + 1) {
-                    b |= RIGHT;
-                }
-                if y + 1 < h && similar(p, p + w, y, y + 1, x, x) {
-                    b |= DOWN;
-                }
-                *bits = b;
-            }
+        .for_each(|(y, bits)| {
+            let rows = |yy: usize| RowView {
+                phase: &phase[yy * nf * w..(yy + 1) * nf * w],
+                colour: &colour[yy * nc * w..(yy + 1) * nc * w],
+                support: &support[yy * w..(yy + 1) * w],
+            };
+            let here = rows(y);
+            let below = (y + 1 < h).then(|| rows(y + 1));
+            connect_row(&here, below.as_ref(), w, nf, nc, params, bits);
         });
+}
+
+struct RowView<'a> {
+    phase: &'a [f32],
+    colour: &'a [f32],
+    support: &'a [f32],
+}
+
+/// Whether pixel `p` of row `a` and pixel `q` of row `b` lie on one surface.
+#[inline]
+#[allow(clippy::too_many_arguments, reason = "hot inner test over two typed rows")]
+fn similar(
+    a: &RowView<'_>,
+    p: usize,
+    b: &RowView<'_>,
+    q: usize,
+    w: usize,
+    nf: usize,
+    nc: usize,
+    params: &SmoothingParams,
+) -> bool {
+    if a.support[p] == 0.0 || b.support[q] == 0.0 {
+        return false;
+    }
+    // Every frequency's phase must be continuous: a depth jump passes one frequency's test by
+    // chance far more often than all of them.
+    for f in 0..nf {
+        if wrapped_diff(a.phase[f * w + p], b.phase[f * w + q]) > params.edge_phase_rad {
+            return false;
+        }
+    }
+    let mut sum_a = 0.0;
+    let mut sum_b = 0.0;
+    for c in 0..nc {
+        sum_a += a.colour[c * w + p].max(0.0);
+        sum_b += b.colour[c * w + q].max(0.0);
+    }
+    if (sum_a - sum_b).abs() > params.edge_colour_ratio * sum_a.max(sum_b) + 6.0 {
+        return false;
+    }
+    // Chromaticity does not change with shading, but does between skin and most backgrounds.
+    if nc == 3 && sum_a > 0.0 && sum_b > 0.0 {
+        for c in [0, 2] {
+            let ca = a.colour[c * w + p].max(0.0) / sum_a;
+            let cb = b.colour[c * w + q].max(0.0) / sum_b;
+            if (ca - cb).abs() > params.edge_chromaticity {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+fn connect_row(
+    here: &RowView<'_>,
+    below: Option<&RowView<'_>>,
+    w: usize,
+    nf: usize,
+    nc: usize,
+    params: &SmoothingParams,
+    bits: &mut [u8],
+) {
+    for (x, b) in bits.iter_mut().enumerate() {
+        let mut v = 0u8;
+        if x + 1 < w && similar(here, x, here, x + 1, w, nf, nc, params) {
+            v |= RIGHT;
+        }
+        if let Some(below) = below {
+            if similar(here, x, below, x, w, nf, nc, params) {
+                v |= DOWN;
+            }
+        }
+        *b = v;
+    }
 }
 
 fn horizontal_pass(out: &mut DecodeOutput, decay: f32) {
