@@ -3,7 +3,9 @@
 /// Errors about frame buffers.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum FrameError {
-    #[error("frame is {got_width}×{got_height}×{got_channels}, expected {width}×{height}×{channels}")]
+    #[error(
+        "frame is {got_width}×{got_height}×{got_channels}, expected {width}×{height}×{channels}"
+    )]
     WrongShape {
         width: usize,
         height: usize,
@@ -84,7 +86,12 @@ impl Frame {
     }
 
     /// Checks that the frame has the given shape.
-    pub fn check_shape(&self, width: usize, height: usize, channels: usize) -> Result<(), FrameError> {
+    pub fn check_shape(
+        &self,
+        width: usize,
+        height: usize,
+        channels: usize,
+    ) -> Result<(), FrameError> {
         if self.width != width || self.height != height || self.channels != channels {
             return Err(FrameError::WrongShape {
                 width,

@@ -50,7 +50,10 @@ fn validity_checks_remove_the_rare_failures_the_robust_method_still_makes() {
     let seq = config.default_sequence().unwrap();
     let (open, _) = decode_once(config.clone(), &seq, checks_off(DecodeParams::default()));
     let (checked, out) = decode_once(config, &seq, DecodeParams::default());
-    assert!(checked.unwrap_errors * 10 < open.unwrap_errors.max(10), "{open:?} vs {checked:?}");
+    assert!(
+        checked.unwrap_errors * 10 < open.unwrap_errors.max(10),
+        "{open:?} vs {checked:?}"
+    );
     // Invalid pixels are NaN in the coordinate map, valid ones finite.
     for (c, &r) in out.coordinate_px.iter().zip(&out.invalid) {
         assert_eq!(c.is_finite(), r == 0);
@@ -64,6 +67,10 @@ fn offset_image_is_the_scene_colour() {
     let (_, out) = decode_once(config, &seq, DecodeParams::default());
     // A skin pixel on the back of the hand: red dominates, blue is darkest (SKIN_ALBEDO).
     let (x, y) = (out.width * 50 / 100, out.height / 2);
-    let (r, g, b) = (out.colour_at(0, x, y), out.colour_at(1, x, y), out.colour_at(2, x, y));
+    let (r, g, b) = (
+        out.colour_at(0, x, y),
+        out.colour_at(1, x, y),
+        out.colour_at(2, x, y),
+    );
     assert!(r > g && g > b && b > 10.0, "colour {r} {g} {b}");
 }

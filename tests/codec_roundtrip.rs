@@ -44,18 +44,30 @@ fn cps_gray_seven_and_nine_images() {
         // The paper's per-pixel formula decodes the same frames too. Its arccos is ill-conditioned
         // near both ends of the range (dx = dC / (f1·sin f1·x): three times the noise at
         // x = 100 px), where it loses about 1 % of the fringe orders even at this low noise.
-        let params = DecodeParams { unwrap: UnwrapMethod::ChebyshevPerPixel, ..robust() };
+        let params = DecodeParams {
+            unwrap: UnwrapMethod::ChebyshevPerPixel,
+            ..robust()
+        };
         let (paper, _) = decode_once(still_hand_rig(NoiseModel::default()), &seq, params);
-        assert!(paper.unwrap_error_rate() < 0.02, "{variant:?} per pixel: {paper:?}");
+        assert!(
+            paper.unwrap_error_rate() < 0.02,
+            "{variant:?} per pixel: {paper:?}"
+        );
         assert!(paper.rms_px < 0.1, "{variant:?} per pixel: {paper:?}");
-        assert!(paper.unwrap_errors > acc.unwrap_errors, "{paper:?} vs {acc:?}");
+        assert!(
+            paper.unwrap_errors > acc.unwrap_errors,
+            "{paper:?} vs {acc:?}"
+        );
     }
 }
 
 #[test]
 fn multi_frequency_unwraps_temporally() {
     let seq = multi_frequency(&[1, 8, 64], 4, 912.0, Axis::Columns, 8).unwrap();
-    let params = DecodeParams { unwrap: UnwrapMethod::Temporal, ..robust() };
+    let params = DecodeParams {
+        unwrap: UnwrapMethod::Temporal,
+        ..robust()
+    };
     let (acc, _) = decode_once(still_hand_rig(NoiseModel::default()), &seq, params);
     assert!(acc.unwrap_error_rate() < 0.002, "{acc:?}");
     assert!(acc.rms_px < 0.1, "{acc:?}");
@@ -74,5 +86,8 @@ fn unwrap_methods_refuse_sequences_they_cannot_unwrap() {
         rig.render(i, &mut frame, None).unwrap();
         last = Some(decoder.push(&frame).map(|_| ()));
     }
-    assert!(matches!(last, Some(Err(DecodeError::NeedsChebyshev { .. }))), "{last:?}");
+    assert!(
+        matches!(last, Some(Err(DecodeError::NeedsChebyshev { .. }))),
+        "{last:?}"
+    );
 }

@@ -16,9 +16,12 @@ fn trembling_rig() -> VirtualRig {
 fn a_trembling_hand_decodes_at_every_frame() {
     let rig = trembling_rig();
     let half_period = rig.sequence.period_px(65) / 2.0;
-    let mut decoder =
-        SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, DecodeParams::default())
-            .unwrap();
+    let mut decoder = SlidingDecoder::new(
+        rig.sequence.clone(),
+        rig.config.cross_talk,
+        DecodeParams::default(),
+    )
+    .unwrap();
     let mut frames: Vec<Frame> = Vec::new();
     let mut truths: Vec<GroundTruth> = Vec::new();
     for i in 0..9u64 {
@@ -53,9 +56,12 @@ fn a_trembling_hand_decodes_at_every_frame() {
 #[test]
 fn a_dropped_frame_is_reported_and_decoding_resumes() {
     let rig = trembling_rig();
-    let mut decoder =
-        SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, DecodeParams::default())
-            .unwrap();
+    let mut decoder = SlidingDecoder::new(
+        rig.sequence.clone(),
+        rig.config.cross_talk,
+        DecodeParams::default(),
+    )
+    .unwrap();
     let mut frame = rig.blank_frame();
     let mut outcomes = Vec::new();
     for i in [0u64, 1, 2, 4, 5, 6] {
@@ -69,7 +75,14 @@ fn a_dropped_frame_is_reported_and_decoding_resumes() {
     // Patterns 0 1 2 | 1 2 0: windows (1,2,1) and (2,1,2) repeat a shift.
     assert_eq!(
         outcomes,
-        ["filling", "filling", "decoded", "unsolvable", "unsolvable", "decoded"]
+        [
+            "filling",
+            "filling",
+            "decoded",
+            "unsolvable",
+            "unsolvable",
+            "decoded"
+        ]
     );
     assert_eq!(decoder.unsolvable_windows, 2);
 }
@@ -77,9 +90,12 @@ fn a_dropped_frame_is_reported_and_decoding_resumes() {
 #[test]
 fn bad_frames_are_refused_with_a_clear_error() {
     let rig = trembling_rig();
-    let mut decoder =
-        SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, DecodeParams::default())
-            .unwrap();
+    let mut decoder = SlidingDecoder::new(
+        rig.sequence.clone(),
+        rig.config.cross_talk,
+        DecodeParams::default(),
+    )
+    .unwrap();
     let mut frame = rig.blank_frame();
     rig.render(0, &mut frame, None).unwrap();
     decoder.push(&frame).unwrap();
@@ -93,9 +109,12 @@ fn bad_frames_are_refused_with_a_clear_error() {
         DecodeError::PatternIndex { index: 5, len: 3 }
     );
     let gray = Frame::new(640, 400, 1).unwrap();
-    let mut fresh =
-        SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, DecodeParams::default())
-            .unwrap();
+    let mut fresh = SlidingDecoder::new(
+        rig.sequence.clone(),
+        rig.config.cross_talk,
+        DecodeParams::default(),
+    )
+    .unwrap();
     for i in 0..2 {
         let mut g = gray.clone();
         g.pattern_index = i;
@@ -103,5 +122,8 @@ fn bad_frames_are_refused_with_a_clear_error() {
     }
     let mut g = gray;
     g.pattern_index = 2;
-    assert_eq!(fresh.push(&g).unwrap_err(), DecodeError::NeedsColourFrames(1));
+    assert_eq!(
+        fresh.push(&g).unwrap_err(),
+        DecodeError::NeedsColourFrames(1)
+    );
 }

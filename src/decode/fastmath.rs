@@ -15,7 +15,9 @@ pub fn atan2(y: f32, x: f32) -> f32 {
     let small = ax.min(ay);
     let t = if big > 0.0 { small / big } else { 0.0 };
     let t2 = t * t;
-    let p = t * (0.999_866 + t2 * (-0.330_299_5 + t2 * (0.180_141 + t2 * (-0.085_133 + t2 * 0.020_835_1))));
+    let p = t
+        * (0.999_866
+            + t2 * (-0.330_299_5 + t2 * (0.180_141 + t2 * (-0.085_133 + t2 * 0.020_835_1))));
     let r = if ay > ax { FRAC_PI_2 - p } else { p };
     let r = if x < 0.0 { PI - r } else { r };
     if y < 0.0 {

@@ -26,6 +26,7 @@ pub use window::{SlidingDecoder, WindowOutcome};
 
 use crate::frame::{Frame, FrameError};
 use crate::pattern::PatternError;
+use std::time::Instant;
 
 /// Rows per parallel band.
 pub(crate) const BAND_ROWS: usize = 8;
@@ -149,6 +150,20 @@ impl Default for DecodeParams {
     }
 }
 
+/// Wall-clock time of each decode stage for the last window, milliseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StageTimings {
+    pub solve_ms: f64,
+    pub smooth_ms: f64,
+    pub unwrap_ms: f64,
+}
+
+impl StageTimings {
+    pub fn total_ms(&self) -> f64 {
+        self.solve_ms + self.smooth_ms + self.unwrap_ms
+    }
+}
+
 /// The decoded result of one window, and the scratch the stages reuse. Per-frequency and
 /// per-channel planes are row-planar: `plane[(row · planes + p) · width + x]`.
 #[derive(Debug, Clone)]
@@ -173,6 +188,8 @@ pub struct DecodeOutput {
     pub coordinate_px: Vec<f32>,
     /// Invalid-reason bits of [`invalid`]; 0 where valid.
     pub invalid: Vec<u8>,
+    /// How long each stage took for this window.
+    pub timings: StageTimings,
     pub(crate) unit_re: Vec<f32>,
     pub(crate) unit_im: Vec<f32>,
     pub(crate) support: Vec<f32>,
@@ -200,6 +217,7 @@ impl DecodeOutput {
             coarse_px: vec![f32::NAN; n],
             coordinate_px: vec![f32::NAN; n],
             invalid: vec![0; n],
+            timings: StageTimings::default(),
             unit_re: vec![0.0; n],
             unit_im: vec![0.0; n],
             support: vec![0.0; n],
@@ -216,7 +234,8 @@ impl DecodeOutput {
             && self.height == height
             && self.frequencies == solver.frequencies.len()
             && self.channels == solver.channels
-            && self.band_scratch_len >= BAND_ROWS * width * (solver.observations + solver.unknowns + 3)
+            && self.band_scratch_len
+                >= BAND_ROWS * width * (solver.observations + solver.unknowns + 3)
     }
 
     #[inline]
@@ -288,10 +307,19 @@ pub fn decode_window(
     }
     out.time_s = frames.iter().map(|f| f.time_s).sum::<f64>() / frames.len() as f64;
     let chebyshev = params.unwrap != UnwrapMethod::Temporal;
+    let started = Instant::now();
     phasor::solve_phasors(solver, frames, params, chebyshev, out);
+    let solved = Instant::now();
     if params.unwrap == UnwrapMethod::ChebyshevRobust {
         smooth::smooth_unit_phasor(out, &params.smoothing);
     }
+    let smoothed = Instant::now();
     unwrap::unwrap_and_combine(solver, params, chebyshev_n, out);
+    let done = Instant::now();
+    out.timings = StageTimings {
+        solve_ms: (solved - started).as_secs_f64() * 1e3,
+        smooth_ms: (smoothed - solved).as_secs_f64() * 1e3,
+        unwrap_ms: (done - smoothed).as_secs_f64() * 1e3,
+    };
     Ok(())
 }

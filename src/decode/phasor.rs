@@ -69,7 +69,10 @@ struct RowOut<'a> {
     flags: &'a mut [u8],
 }
 
-#[allow(clippy::too_many_arguments, reason = "a stage kernel over one row's typed buffers")]
+#[allow(
+    clippy::too_many_arguments,
+    reason = "a stage kernel over one row's typed buffers"
+)]
 fn solve_row(
     solver: &WindowSolver,
     frames: &[&Frame],
@@ -164,7 +167,7 @@ fn solve_row(
             min_amp = min_amp.min(row.amp[f * w + x]);
         }
         let mut reason = 0u8;
-        if !(min_amp >= params.min_amplitude) {
+        if min_amp.is_nan() || min_amp < params.min_amplitude {
             reason |= invalid::LOW_AMPLITUDE;
         }
         if saturated[x] > 0.0 {

@@ -67,7 +67,10 @@ struct RowView<'a> {
 
 /// Whether pixel `p` of row `a` and pixel `q` of row `b` lie on one surface.
 #[inline]
-#[allow(clippy::too_many_arguments, reason = "hot inner test over two typed rows")]
+#[allow(
+    clippy::too_many_arguments,
+    reason = "hot inner test over two typed rows"
+)]
 fn similar(
     a: &RowView<'_>,
     p: usize,
@@ -147,9 +150,13 @@ fn horizontal_pass(out: &mut DecodeOutput, decay: f32) {
             for r in 0..rows {
                 let span = r * w..(r + 1) * w;
                 let link = &connect[span.clone()];
-                for (plane, buf) in [&mut re[span.clone()], &mut im[span.clone()], &mut support[span.clone()]]
-                    .into_iter()
-                    .enumerate()
+                for (plane, buf) in [
+                    &mut re[span.clone()],
+                    &mut im[span.clone()],
+                    &mut support[span.clone()],
+                ]
+                .into_iter()
+                .enumerate()
                 {
                     let orig = &mut tmp[plane * w..(plane + 1) * w];
                     orig.copy_from_slice(buf);
@@ -206,7 +213,14 @@ fn vertical_pass(out: &mut DecodeOutput, decay: f32) {
 
 /// Backward (bottom-up) sweep of the vertical pass: adds `B − v` to the forward result in `buf`.
 /// `orig` holds `v` on entry and is overwritten with `B` row by row, which is all the state needed.
-fn backward_columns(buf: &mut [f32], orig: &mut [f32], connect: &[u8], w: usize, h: usize, decay: f32) {
+fn backward_columns(
+    buf: &mut [f32],
+    orig: &mut [f32],
+    connect: &[u8],
+    w: usize,
+    h: usize,
+    decay: f32,
+) {
     for y in (0..h).rev() {
         let (upper, lower) = orig.split_at_mut((y + 1) * w);
         let v_and_b = &mut upper[y * w..];
@@ -216,7 +230,11 @@ fn backward_columns(buf: &mut [f32], orig: &mut [f32], connect: &[u8], w: usize,
             let b_below = &lower[..w];
             for x in 0..w {
                 let v = v_and_b[x];
-                let b = if links[x] & DOWN != 0 { v + decay * b_below[x] } else { v };
+                let b = if links[x] & DOWN != 0 {
+                    v + decay * b_below[x]
+                } else {
+                    v
+                };
                 row_out[x] += b - v;
                 v_and_b[x] = b;
             }
@@ -245,7 +263,8 @@ mod tests {
 
     fn output(w: usize, h: usize) -> DecodeOutput {
         let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
-        let solver = WindowSolver::new(&seq, &[0, 1, 2], &crate::color::CrossTalk::paper()).unwrap();
+        let solver =
+            WindowSolver::new(&seq, &[0, 1, 2], &crate::color::CrossTalk::paper()).unwrap();
         DecodeOutput::new(w, h, &solver)
     }
 

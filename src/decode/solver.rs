@@ -79,13 +79,8 @@ impl WindowSolver {
                 unknowns,
             });
         }
-        let column_of = |m: u32| {
-            channels
-                + 2 * frequencies
-                    .iter()
-                    .position(|&f| f == m)
-                    .unwrap_or_default()
-        };
+        let column_of =
+            |m: u32| channels + 2 * frequencies.iter().position(|&f| f == m).unwrap_or_default();
         let mut design = DMatrix::<f64>::zeros(observations, unknowns);
         for (k, entry) in entries.iter().enumerate() {
             let codes = entry.codes();
@@ -94,7 +89,11 @@ impl WindowSolver {
                 design[(row, j)] = 1.0;
                 for (i, code) in codes.iter().enumerate() {
                     // Gray light passes all projector channels equally: gain 1 for the one channel.
-                    let gain = if channels == 3 { cross_talk.a[(j, i)] } else { 1.0 };
+                    let gain = if channels == 3 {
+                        cross_talk.a[(j, i)]
+                    } else {
+                        1.0
+                    };
                     let col = column_of(code.m);
                     design[(row, col)] += gain * code.shift_rad.cos();
                     design[(row, col + 1)] -= gain * code.shift_rad.sin();
@@ -193,13 +192,19 @@ mod tests {
             let p: Vec<f64> = codes
                 .iter()
                 .zip(albedo)
-                .map(|(c, a)| 200.0 * a * (0.5 + 0.5 * (seq.frequency(c.m) * x + c.shift_rad).cos()))
+                .map(|(c, a)| {
+                    200.0 * a * (0.5 + 0.5 * (seq.frequency(c.m) * x + c.shift_rad).cos())
+                })
                 .collect();
             let c = ct.apply(&nalgebra::Vector3::new(p[0], p[1], p[2]));
             obs.extend([c.x, c.y, c.z]);
         }
         let u: Vec<f64> = (0..s.unknowns)
-            .map(|r| (0..s.observations).map(|c| f64::from(s.pinv[r * 9 + c]) * obs[c]).sum())
+            .map(|r| {
+                (0..s.observations)
+                    .map(|c| f64::from(s.pinv[r * 9 + c]) * obs[c])
+                    .sum()
+            })
             .collect();
         // Blue carries m = 65 = slot 0.
         let (cu, sv) = (u[s.cos_unknown(0)], u[s.cos_unknown(0) + 1]);

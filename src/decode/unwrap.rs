@@ -16,7 +16,7 @@
 //!   support test carry most of the protection. A wrong depth is worse than a missing one.
 
 use super::smooth::unit_angle;
-use super::{invalid, DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver, BAND_ROWS};
+use super::{invalid, DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
 use rayon::prelude::*;
 use std::f32::consts::{PI, TAU};
 
@@ -29,49 +29,148 @@ pub(crate) fn unwrap_and_combine(
 ) {
     let w = out.width;
     let nf = out.frequencies;
-    let band_px = BAND_ROWS * w;
     let f = &solver.frequency_rad_per_px;
     // x_max = m·π / f_m for any slot.
     let x_max = solver.frequencies[0] as f32 * PI / f[0];
     let f1 = chebyshev_n.map_or(0.0, |n| f[0] / n as f32);
-    let method = params.unwrap;
+    let consts = Consts {
+        w,
+        nf,
+        f1,
+        x_max,
+        params: *params,
+        f: f.clone(),
+    };
     out.coordinate_px
-        .par_chunks_mut(band_px)
-        .zip(out.coarse_px.par_chunks_mut(band_px))
-        .zip(out.invalid.par_chunks_mut(band_px))
-        .zip(out.phase_rad.par_chunks(band_px * nf))
-        .zip(out.amplitude.par_chunks(band_px * nf))
-        .zip(out.unit_re.par_chunks(band_px))
-        .zip(out.unit_im.par_chunks(band_px))
-        .zip(out.support.par_chunks(band_px))
-        .for_each(|(((((((coord, coarse), flags), phase), amp), re), im), support)| {
-            for i in 0..flags.len() {
-                let (r, x) = (i / w, i % w);
-                let ph = |s: usize| phase[(r * nf + s) * w + x];
-                let am = |s: usize| amp[(r * nf + s) * w + x];
-                let mut reason = flags[i];
-                let (xc, value) = match method {
-                    UnwrapMethod::Temporal => temporal(nf, f, &ph, params, &mut reason),
-                    UnwrapMethod::ChebyshevPerPixel | UnwrapMethod::ChebyshevRobust => {
-                        let xc = if method == UnwrapMethod::ChebyshevRobust {
-                            if support[i] < params.smoothing.min_support {
-                                reason |= invalid::LOW_SUPPORT;
-                            }
-                            unit_angle(re[i], im[i]) / f1
-                        } else {
-                            paper_coarse(ph(0), ph(1), ph(2)) / f1
-                        };
-                        (xc, chebyshev_combine(xc, f, &ph, &am, params, &mut reason))
-                    }
+        .par_chunks_mut(w)
+        .zip(out.coarse_px.par_chunks_mut(w))
+        .zip(out.invalid.par_chunks_mut(w))
+        .zip(out.phase_rad.par_chunks(w * nf))
+        .zip(out.amplitude.par_chunks(w * nf))
+        .zip(out.unit_re.par_chunks(w))
+        .zip(out.unit_im.par_chunks(w))
+        .zip(out.support.par_chunks(w))
+        .for_each(
+            |(((((((coord, coarse), flags), phase), amp), re), im), support)| {
+                let row = Row {
+                    coord,
+                    coarse,
+                    flags,
+                    phase,
+                    amp,
+                    re,
+                    im,
+                    support,
                 };
-                if !(-0.5..x_max).contains(&value) {
-                    reason |= invalid::OUT_OF_RANGE;
+                match consts.params.unwrap {
+                    UnwrapMethod::Temporal => temporal_row(&consts, row),
+                    UnwrapMethod::ChebyshevPerPixel | UnwrapMethod::ChebyshevRobust => {
+                        chebyshev_row(&consts, row);
+                    }
                 }
-                coarse[i] = xc;
-                flags[i] = reason;
-                coord[i] = if reason == 0 { value } else { f32::NAN };
+            },
+        );
+}
+
+struct Consts {
+    w: usize,
+    nf: usize,
+    f1: f32,
+    x_max: f32,
+    params: DecodeParams,
+    f: Vec<f32>,
+}
+
+struct Row<'a> {
+    coord: &'a mut [f32],
+    coarse: &'a mut [f32],
+    flags: &'a mut [u8],
+    phase: &'a [f32],
+    amp: &'a [f32],
+    re: &'a [f32],
+    im: &'a [f32],
+    support: &'a [f32],
+}
+
+/// Round to nearest for |v| < 2²²: adding and removing 1.5·2²³ leaves the integer part, and
+/// compiles to two additions instead of a libm call.
+#[inline]
+fn round_fast(v: f32) -> f32 {
+    const MAGIC: f32 = 12_582_912.0;
+    (v + MAGIC) - MAGIC
+}
+
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+fn chebyshev_row(c: &Consts, row: Row<'_>) {
+    let w = c.w;
+    let p = &c.params;
+    let robust = p.unwrap == UnwrapMethod::ChebyshevRobust;
+    let (ph0, rest) = row.phase.split_at(w);
+    let (ph1, ph2) = rest.split_at(w);
+    let (am0, rest) = row.amp.split_at(w);
+    let (am1, am2) = rest.split_at(w);
+    let (f0, fa, fb) = (c.f[0], c.f[1], c.f[2]);
+    for x in 0..w {
+        let mut reason = row.flags[x];
+        let xc = if robust {
+            if row.support[x] < p.smoothing.min_support {
+                reason |= invalid::LOW_SUPPORT;
             }
-        });
+            unit_angle(row.re[x], row.im[x]) / c.f1
+        } else {
+            paper_coarse(ph0[x], ph1[x], ph2[x]) / c.f1
+        };
+        let (x0, r0) = unwrap_one(xc, ph0[x], f0);
+        let (x1, r1) = unwrap_one(xc, ph1[x], fa);
+        let (x2, r2) = unwrap_one(xc, ph2[x], fb);
+        let (w0, w1, w2) = (am0[x] * am0[x], am1[x] * am1[x], am2[x] * am2[x]);
+        let total = w0 + w1 + w2;
+        let combined = if total > 0.0 {
+            (x0 * w0 + x1 * w1 + x2 * w2) / total
+        } else {
+            x0
+        };
+        if r0.max(r1).max(r2) > p.max_rounding_residual {
+            reason |= invalid::UNWRAP_MARGIN;
+        }
+        let spread = (x0 - combined)
+            .abs()
+            .max((x1 - combined).abs())
+            .max((x2 - combined).abs());
+        if spread > p.max_disagreement_px {
+            reason |= invalid::DISAGREEMENT;
+        }
+        if !(-0.5..c.x_max).contains(&combined) {
+            reason |= invalid::OUT_OF_RANGE;
+        }
+        row.coarse[x] = xc;
+        row.flags[x] = reason;
+        row.coord[x] = if reason == 0 { combined } else { f32::NAN };
+    }
+}
+
+/// Eq. 8 from the lowest frequency upwards; slots are in descending frequency order.
+fn temporal_row(c: &Consts, row: Row<'_>) {
+    let w = c.w;
+    let lowest = c.nf - 1;
+    for x in 0..w {
+        let mut reason = row.flags[x];
+        let xc = row.phase[lowest * w + x] / c.f[lowest];
+        let mut value = xc;
+        for s in (0..lowest).rev() {
+            let (xi, residual) = unwrap_one(value, row.phase[s * w + x], c.f[s]);
+            if residual > c.params.max_rounding_residual {
+                reason |= invalid::UNWRAP_MARGIN;
+            }
+            value = xi;
+        }
+        if !(-0.5..c.x_max).contains(&value) {
+            reason |= invalid::OUT_OF_RANGE;
+        }
+        row.coarse[x] = xc;
+        row.flags[x] = reason;
+        row.coord[x] = if reason == 0 { value } else { f32::NAN };
+    }
 }
 
 /// The paper's per-pixel unit phase `f_1·x̂` (eqs. 13–15), in `[0, π]`.
@@ -93,62 +192,8 @@ pub fn paper_coarse(phase0: f32, phase1: f32, phase2: f32) -> f32 {
 #[inline]
 pub fn unwrap_one(xc: f32, phase: f32, f: f32) -> (f32, f32) {
     let arg = (xc * f - phase) / TAU;
-    let k = arg.round();
+    let k = round_fast(arg);
     ((TAU * k + phase) / f, (arg - k).abs())
-}
-
-fn chebyshev_combine(
-    xc: f32,
-    f: &[f32],
-    ph: &dyn Fn(usize) -> f32,
-    am: &dyn Fn(usize) -> f32,
-    params: &DecodeParams,
-    reason: &mut u8,
-) -> f32 {
-    let mut xs = [0f32; 3];
-    let mut weights = [0f32; 3];
-    let mut worst_residual = 0f32;
-    for s in 0..3 {
-        let (xi, residual) = unwrap_one(xc, ph(s), f[s]);
-        xs[s] = xi;
-        weights[s] = am(s) * am(s);
-        worst_residual = worst_residual.max(residual);
-    }
-    let total: f32 = weights.iter().sum();
-    let combined = if total > 0.0 {
-        xs.iter().zip(&weights).map(|(x, w)| x * w).sum::<f32>() / total
-    } else {
-        xs[0]
-    };
-    if worst_residual > params.max_rounding_residual {
-        *reason |= invalid::UNWRAP_MARGIN;
-    }
-    let spread = xs.iter().map(|x| (x - combined).abs()).fold(0.0, f32::max);
-    if spread > params.max_disagreement_px {
-        *reason |= invalid::DISAGREEMENT;
-    }
-    combined
-}
-
-/// Eq. 8 from the lowest frequency upwards; slots are in descending frequency order.
-fn temporal(
-    nf: usize,
-    f: &[f32],
-    ph: &dyn Fn(usize) -> f32,
-    params: &DecodeParams,
-    reason: &mut u8,
-) -> (f32, f32) {
-    let lowest = nf - 1;
-    let xc = ph(lowest) / f[lowest];
-    let mut x = xc;
-    for s in (0..lowest).rev() {
-        let (xi, residual) = unwrap_one(x, ph(s), f[s]);
-        if residual > params.max_rounding_residual {
-            *reason |= invalid::UNWRAP_MARGIN;
-        }
-        x = xi;
-    }
-    (xc, x)
 }
 
 #[cfg(test)]
@@ -174,6 +219,9 @@ mod tests {
         let (xi, res) = unwrap_one(x + 9.0, phase, f);
         assert!((xi - x).abs() < 1e-3 && res < 0.33);
         let (xi, _) = unwrap_one(x + 15.0, phase, f);
-        assert!((xi - x - 2.0 * 912.0 / 65.0).abs() < 1e-3, "one period off: {xi}");
+        assert!(
+            (xi - x - 2.0 * 912.0 / 65.0).abs() < 1e-3,
+            "one period off: {xi}"
+        );
     }
 }

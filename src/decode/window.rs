@@ -127,7 +127,8 @@ impl SlidingDecoder {
         }
         self.order.clear();
         for i in 0..len {
-            self.order.push(self.ring[(self.next + i) % len].pattern_index);
+            self.order
+                .push(self.ring[(self.next + i) % len].pattern_index);
         }
         let solver = match self.solvers.get(&self.order) {
             Some(s) => Arc::clone(s),
@@ -146,7 +147,9 @@ impl SlidingDecoder {
                 Err(e) => return Err(e),
             },
         };
-        let frames: Vec<&Frame> = (0..len).map(|i| &self.ring[(self.next + i) % len]).collect();
+        let frames: Vec<&Frame> = (0..len)
+            .map(|i| &self.ring[(self.next + i) % len])
+            .collect();
         let (w, h) = (frames[0].width, frames[0].height);
         let out = self
             .output

@@ -75,7 +75,9 @@ impl LensModel {
         if point.z <= 1e-9 {
             return None;
         }
-        let (xd, yd) = self.distortion.distort(point.x / point.z, point.y / point.z);
+        let (xd, yd) = self
+            .distortion
+            .distort(point.x / point.z, point.y / point.z);
         let k = &self.intrinsics;
         Some((k.fx * xd + k.cx, k.fy * yd + k.cy))
     }
@@ -83,7 +85,9 @@ impl LensModel {
     /// The unit ray through pixel `(u, v)` in the device frame.
     pub fn ray(&self, u: f64, v: f64) -> Result<Vector3<f64>, GeometryError> {
         let k = &self.intrinsics;
-        let (x, y) = self.distortion.undistort((u - k.cx) / k.fx, (v - k.cy) / k.fy)?;
+        let (x, y) = self
+            .distortion
+            .undistort((u - k.cx) / k.fx, (v - k.cy) / k.fy)?;
         Ok(Vector3::new(x, y, 1.0).normalize())
     }
 
@@ -142,10 +146,18 @@ mod tests {
     #[test]
     fn ray_and_project_are_inverse() {
         let lens = lens();
-        for &(u, v) in &[(0.0, 0.0), (1919.0, 1199.0), (955.0, 604.0), (300.5, 1000.25)] {
+        for &(u, v) in &[
+            (0.0, 0.0),
+            (1919.0, 1199.0),
+            (955.0, 604.0),
+            (300.5, 1000.25),
+        ] {
             let ray = lens.ray(u, v).unwrap();
             let (pu, pv) = lens.project(&(ray * 480.0)).unwrap();
-            assert!((pu - u).abs() < 1e-6 && (pv - v).abs() < 1e-6, "{u},{v} → {pu},{pv}");
+            assert!(
+                (pu - u).abs() < 1e-6 && (pv - v).abs() < 1e-6,
+                "{u},{v} → {pu},{pv}"
+            );
         }
     }
 

@@ -103,10 +103,7 @@ pub fn multi_frequency(
     projector_bits: u32,
 ) -> Result<PatternSequence, PatternError> {
     if steps < 3 {
-        return Err(PatternError::TooFewSteps {
-            min: 3,
-            got: steps,
-        });
+        return Err(PatternError::TooFewSteps { min: 3, got: steps });
     }
     let lowest = ms.iter().copied().min().ok_or(PatternError::Empty)?;
     if lowest > 2 {
@@ -157,7 +154,10 @@ mod tests {
         assert!((seq.period_px(128) - 16.0).abs() < 1e-12);
         let full = cps_gray(129, CpsGrayVariant::Full9, 1024.0, Axis::Columns, 8).unwrap();
         assert_eq!(full.entries.len(), 9);
-        assert_eq!(cps_gray(2, CpsGrayVariant::Full9, 1024.0, Axis::Columns, 8), Err(PatternError::BadChebyshevN(2)));
+        assert_eq!(
+            cps_gray(2, CpsGrayVariant::Full9, 1024.0, Axis::Columns, 8),
+            Err(PatternError::BadChebyshevN(2))
+        );
     }
 
     #[test]

@@ -228,8 +228,12 @@ mod tests {
         seq.projector_bits = 9;
         assert_eq!(seq.validate(), Err(PatternError::BadBits(9)));
         seq.projector_bits = 6;
-        seq.entries.push(PatternEntry::Gray(ChannelCode::new(3, 0.0)));
-        assert_eq!(seq.validate(), Err(PatternError::MixedChannels { index: 3 }));
+        seq.entries
+            .push(PatternEntry::Gray(ChannelCode::new(3, 0.0)));
+        assert_eq!(
+            seq.validate(),
+            Err(PatternError::MixedChannels { index: 3 })
+        );
         seq.entries.clear();
         assert_eq!(seq.validate(), Err(PatternError::Empty));
     }

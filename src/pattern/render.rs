@@ -23,10 +23,13 @@ pub fn render_pattern(
     if width == 0 || height == 0 {
         return Err(PatternError::EmptyImage { width, height });
     }
-    let entry = seq.entries.get(index).ok_or(PatternError::IndexOutOfRange {
-        index,
-        len: seq.entries.len(),
-    })?;
+    let entry = seq
+        .entries
+        .get(index)
+        .ok_or(PatternError::IndexOutOfRange {
+            index,
+            len: seq.entries.len(),
+        })?;
     let codes = entry.codes();
     let channels = codes.len();
     let mut data = vec![0u8; width * height * channels];
@@ -39,7 +42,14 @@ pub fn render_pattern(
             }
         }
     }
-    debug_assert_eq!(channels, if matches!(entry, PatternEntry::Gray(_)) { 1 } else { 3 });
+    debug_assert_eq!(
+        channels,
+        if matches!(entry, PatternEntry::Gray(_)) {
+            1
+        } else {
+            3
+        }
+    );
     Ok(PatternImage {
         width,
         height,
@@ -86,7 +96,10 @@ mod tests {
         let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
         assert_eq!(
             render_pattern(&seq, 0, 0, 3),
-            Err(PatternError::EmptyImage { width: 0, height: 3 })
+            Err(PatternError::EmptyImage {
+                width: 0,
+                height: 3
+            })
         );
     }
 }

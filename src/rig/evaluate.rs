@@ -70,6 +70,10 @@ pub fn compare(out: &DecodeOutput, truth: &GroundTruth, half_period_px: f64) -> 
             acc.max_px = acc.max_px.max(err);
         }
     }
-    acc.rms_px = if good > 0 { (sum2 / good as f64).sqrt() } else { 0.0 };
+    acc.rms_px = if good > 0 {
+        (sum2 / good as f64).sqrt()
+    } else {
+        0.0
+    };
     acc
 }

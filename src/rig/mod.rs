@@ -102,8 +102,10 @@ impl RigConfig {
                 ..Distortion::default()
             },
         };
-        let projector_from_camera =
-            Pose::look_at(Vector3::new(150.0, 0.0, 20.0), Vector3::new(10.0, 0.0, 480.0));
+        let projector_from_camera = Pose::look_at(
+            Vector3::new(150.0, 0.0, 20.0),
+            Vector3::new(10.0, 0.0, 480.0),
+        );
         Ok(Self {
             camera: camera_full.resized(width, height)?,
             projector,
@@ -222,14 +224,15 @@ impl VirtualRig {
                 got_height: frame.height,
             });
         }
-        let entry = *self
-            .sequence
-            .entries
-            .get(pattern_index)
-            .ok_or(PatternError::IndexOutOfRange {
-                index: pattern_index,
-                len: self.sequence.entries.len(),
-            })?;
+        let entry =
+            *self
+                .sequence
+                .entries
+                .get(pattern_index)
+                .ok_or(PatternError::IndexOutOfRange {
+                    index: pattern_index,
+                    len: self.sequence.entries.len(),
+                })?;
         frame.data.resize(w * h * 3, 0);
         frame.time_s = time_s;
         frame.pattern_index = pattern_index;

@@ -61,7 +61,9 @@ fn splitmix64(mut z: u64) -> u64 {
 /// Two independent standard normal samples for `(seed, frame, pixel, stream)`.
 #[inline]
 pub fn normal_pair(seed: u64, frame: u64, pixel: u64, stream: u64) -> (f64, f64) {
-    let key = splitmix64(seed ^ splitmix64(frame ^ splitmix64(pixel.wrapping_mul(4).wrapping_add(stream))));
+    let key = splitmix64(
+        seed ^ splitmix64(frame ^ splitmix64(pixel.wrapping_mul(4).wrapping_add(stream))),
+    );
     let a = splitmix64(key);
     let b = splitmix64(key ^ 0xD6E8_FEB8_6659_FD93);
     // Uniforms in (0, 1]: never zero, so the logarithm is finite.

@@ -78,11 +78,19 @@ fn shade_pixel(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize) -> Sample {
     let mut albedo = [0.0f64; 3];
     if let Some(hit) = ctx.posed.intersect(&origin, &dir) {
         let point = dir * hit.distance_mm;
-        let normal = if hit.normal.dot(&dir) > 0.0 { -hit.normal } else { hit.normal };
+        let normal = if hit.normal.dot(&dir) > 0.0 {
+            -hit.normal
+        } else {
+            hit.normal
+        };
         sample.depth_mm = point.z as f32;
         let skin = hit.material == Material::Skin;
         sample.surface = if skin { surface::SKIN } else { surface::TABLE };
-        albedo = if skin { SKIN_ALBEDO } else { ctx.posed.table_albedo(&point) };
+        albedo = if skin {
+            SKIN_ALBEDO
+        } else {
+            ctx.posed.table_albedo(&point)
+        };
         let to_projector = ctx.projector_centre - point;
         let distance = to_projector.norm();
         let light_dir = to_projector / distance;
@@ -145,7 +153,11 @@ mod tests {
         rig.render(4, &mut b, None).unwrap();
         assert_eq!(a.data, b.data);
         assert_eq!(a.pattern_index, 1);
-        let skin = truth.surface.iter().filter(|&&s| s == super::surface::SKIN).count();
+        let skin = truth
+            .surface
+            .iter()
+            .filter(|&&s| s == super::surface::SKIN)
+            .count();
         assert!(skin > 1000, "hand covers {skin} px");
         assert!(truth.depth_mm.iter().all(|d| d.is_finite()));
         let lit = truth.coordinate_px.iter().filter(|c| c.is_finite()).count();
@@ -163,6 +175,8 @@ mod tests {
         let mut truth = GroundTruth::default();
         rig.render(0, &mut frame, Some(&mut truth)).unwrap();
         assert!(truth.depth_mm.iter().all(|&d| (d - 500.0).abs() < 1e-3));
-        assert!(rig.render(0, &mut crate::frame::Frame::new(3, 3, 3).unwrap(), None).is_err());
+        assert!(rig
+            .render(0, &mut crate::frame::Frame::new(3, 3, 3).unwrap(), None)
+            .is_err());
     }
 }

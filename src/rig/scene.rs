@@ -170,25 +170,44 @@ impl Scene {
             // A rotation α about y moves a point at horizontal arm |Δx| by α·|Δx| along z: choose
             // α so that the tracked tip point moves by exactly the configured amplitude.
             let rest_joint = knuckle + rest_d1 * l1;
-            let rest_tracked = surface_above(rest_joint, rest_joint + rest_d2 * l2, radius, 0.8, up);
+            let rest_tracked =
+                surface_above(rest_joint, rest_joint + rest_d2 * l2, radius, 0.8, up);
             let arm = (rest_tracked.x - knuckle.x).abs();
             let alpha = (tremor.tip_amplitude_mm / arm).asin() * (omega_t + TAU * phase).sin();
             let rot = Rotation3::from_axis_angle(&Vector3::y_axis(), alpha);
             let joint = knuckle + rot * rest_d1 * l1;
             let tip = joint + rot * rest_d2 * l2;
-            posed.capsules.push(Capsule { a: knuckle, b: joint, radius });
-            posed.capsules.push(Capsule { a: joint, b: tip, radius });
+            posed.capsules.push(Capsule {
+                a: knuckle,
+                b: joint,
+                radius,
+            });
+            posed.capsules.push(Capsule {
+                a: joint,
+                b: tip,
+                radius,
+            });
             tips.push(surface_above(joint, tip, radius, 0.8, up));
         }
         // Thumb: two segments towards +y, trembling with the hand only.
         let base = palm_centre + V3::new(-8.0, 34.0, 3.0);
         let joint = base + V3::new(-22.0, 22.0, 4.0);
         let tip = joint + V3::new(-24.0, 8.0, 6.0);
-        posed.capsules.push(Capsule { a: base, b: joint, radius: 10.5 });
-        posed.capsules.push(Capsule { a: joint, b: tip, radius: 9.5 });
+        posed.capsules.push(Capsule {
+            a: base,
+            b: joint,
+            radius: 10.5,
+        });
+        posed.capsules.push(Capsule {
+            a: joint,
+            b: tip,
+            radius: 9.5,
+        });
         tips.push(surface_above(joint, tip, 9.5, 0.8, up));
         posed.points.extend(tips);
-        posed.points.push(palm_centre + V3::new(0.0, 0.0, -palm.radii.z));
+        posed
+            .points
+            .push(palm_centre + V3::new(0.0, 0.0, -palm.radii.z));
         posed.palm = Some(palm);
         posed.bound_centre = palm_centre + V3::new(-40.0, 10.0, 0.0);
         posed.bound_radius = 140.0;
@@ -275,7 +294,11 @@ impl PosedScene {
         let checker = ((p.x / 40.0).floor() + (p.y / 40.0).floor()).rem_euclid(2.0);
         let stripe = 0.5 + 0.5 * (p.x * 0.11 + p.y * 0.07).sin();
         let k = 0.78 + 0.12 * checker;
-        [k * (0.80 - 0.10 * stripe), k * 0.74, k * (0.58 + 0.18 * stripe)]
+        [
+            k * (0.80 - 0.10 * stripe),
+            k * 0.74,
+            k * (0.58 + 0.18 * stripe),
+        ]
     }
 }
 
@@ -381,8 +404,11 @@ mod tests {
             }),
             ..SceneConfig::trembling_hand()
         });
-        let zs: Vec<f64> = (0..200).map(|i| scene.at(i as f64 / 1000.0).points[0].z).collect();
-        let span = zs.iter().cloned().fold(f64::MIN, f64::max) - zs.iter().cloned().fold(f64::MAX, f64::min);
+        let zs: Vec<f64> = (0..200)
+            .map(|i| scene.at(i as f64 / 1000.0).points[0].z)
+            .collect();
+        let span = zs.iter().cloned().fold(f64::MIN, f64::max)
+            - zs.iter().cloned().fold(f64::MAX, f64::min);
         // Peak-to-peak of the tracked tip point is 2·A up to the sampling of the sine (1 ms of
         // 200 ms) and the second-order term of the rotation.
         assert!((span - 4.0).abs() < 0.05, "span {span}");

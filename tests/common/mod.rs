@@ -1,5 +1,8 @@
 //! Shared helpers of the integration tests: render a window with the virtual rig and decode it.
-#![allow(dead_code, reason = "each test binary uses a different subset of the helpers")]
+#![allow(
+    dead_code,
+    reason = "each test binary uses a different subset of the helpers"
+)]
 
 use tremorscan::decode::{DecodeOutput, DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::pattern::PatternSequence;

@@ -34,8 +34,11 @@ impl Default for DemoArgs {
 }
 
 pub fn run(args: &DemoArgs) -> Result<()> {
-    let config = RigConfig::paper(args.width, args.height).context("configuring the virtual rig")?;
-    let seq = config.default_sequence().context("building the CPS-RGB sequence")?;
+    let config =
+        RigConfig::paper(args.width, args.height).context("configuring the virtual rig")?;
+    let seq = config
+        .default_sequence()
+        .context("building the CPS-RGB sequence")?;
     let half_period = seq.period_px(65) / 2.0;
     let rig = VirtualRig::new(config, seq.clone()).context("building the virtual rig")?;
     let mut decoder = SlidingDecoder::new(seq, rig.config.cross_talk, DecodeParams::default())
@@ -61,7 +64,9 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             .with_context(|| format!("rendering frame {i}"))?;
         let render_ms = started.elapsed().as_secs_f64() * 1e3;
         let started = Instant::now();
-        let outcome = decoder.push(&frame).with_context(|| format!("decoding frame {i}"))?;
+        let outcome = decoder
+            .push(&frame)
+            .with_context(|| format!("decoding frame {i}"))?;
         let decode_ms = started.elapsed().as_secs_f64() * 1e3;
         render_total += render_ms;
         if let WindowOutcome::Decoded(out) = outcome {

@@ -9,7 +9,11 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser, Debug)]
-#[command(name = "tremorscan", version, about = "Chebyshev Phase Shifting hand tremor scanner")]
+#[command(
+    name = "tremorscan",
+    version,
+    about = "Chebyshev Phase Shifting hand tremor scanner"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
