@@ -14,6 +14,7 @@
 //! (`[row][plane][x]`) so that every per-row loop runs over contiguous `f32` and vectorises.
 //! [`window::SlidingDecoder`] drives the stages over a stream of frames.
 
+mod connect;
 pub mod fastmath;
 pub mod phasor;
 pub mod smooth;
@@ -195,6 +196,7 @@ pub struct DecodeOutput {
     pub(crate) support: Vec<f32>,
     pub(crate) connect: Vec<u8>,
     pub(crate) smooth_tmp: Vec<f32>,
+    pub(crate) vertical_state: Vec<f32>,
     pub(crate) band_scratch: Vec<f32>,
     pub(crate) band_scratch_len: usize,
 }
@@ -222,7 +224,8 @@ impl DecodeOutput {
             unit_im: vec![0.0; n],
             support: vec![0.0; n],
             connect: vec![0; n],
-            smooth_tmp: vec![0.0; 3 * n],
+            smooth_tmp: vec![0.0; 4 * BAND_ROWS * width * bands],
+            vertical_state: vec![0.0; 3 * width * height.div_ceil(smooth::VERTICAL_BLOCK_ROWS)],
             band_scratch: vec![0.0; bands * band_scratch_len],
             band_scratch_len,
         }

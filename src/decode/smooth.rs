@@ -8,20 +8,16 @@
 //! on one surface.
 //!
 //! How: a recursive exponential filter (forward + backward, rows then columns), in the manner of
-//! a domain-transform filter. Two neighbours are *connected* when both are valid, their middle
-//! frequency's wrapped phase differs by less than `edge_phase_rad` and their brightness and
-//! chromaticity are similar;
-//! the recursion does not cross unconnected pairs, so depth edges (where the phase jumps) and
+//! a domain-transform filter. The recursion does not cross pairs of neighbours that
+//! [`super::connect`] finds unconnected, so depth edges (where the phase jumps) and
 //! object boundaries (where the colour changes) stop the averaging. The filter costs O(1) per
 //! pixel whatever its reach. The phasor magnitude (∝ amplitude²) weights bright pixels more.
 //! The weight of valid pixels is filtered alongside as `support`.
 
+use super::connect::{compute_connectivity, DOWN, RIGHT};
 use super::{DecodeOutput, SmoothingParams, BAND_ROWS};
 use rayon::prelude::*;
 use std::f32::consts::{PI, TAU};
-
-const RIGHT: u8 = 1;
-const DOWN: u8 = 2;
 
 /// Runs stage 2 in place on `out.unit_re`, `out.unit_im` and `out.support`.
 pub(crate) fn smooth_unit_phasor(out: &mut DecodeOutput, params: &SmoothingParams) {
@@ -30,216 +26,186 @@ pub(crate) fn smooth_unit_phasor(out: &mut DecodeOutput, params: &SmoothingParam
     vertical_pass(out, params.decay);
 }
 
-#[inline]
-fn wrapped_diff(a: f32, b: f32) -> f32 {
-    let d = (a - b).abs();
-    d.min(TAU - d)
-}
-
-fn compute_connectivity(out: &mut DecodeOutput, params: &SmoothingParams) {
-    let w = out.width;
-    let h = out.height;
-    let nf = out.frequencies;
-    let nc = out.channels;
-    let phase = &out.phase_rad;
-    let colour = &out.colour;
-    let support = &out.support;
-    out.connect
-        .par_chunks_mut(w)
-        .enumerate()
-        .for_each(|(y, bits)| {
-            let rows = |yy: usize| RowView {
-                phase: &phase[yy * nf * w..(yy + 1) * nf * w],
-                colour: &colour[yy * nc * w..(yy + 1) * nc * w],
-                support: &support[yy * w..(yy + 1) * w],
-            };
-            let here = rows(y);
-            let below = (y + 1 < h).then(|| rows(y + 1));
-            connect_row(&here, below.as_ref(), w, nf, nc, params, bits);
-        });
-}
-
-struct RowView<'a> {
-    phase: &'a [f32],
-    colour: &'a [f32],
-    support: &'a [f32],
-}
-
-/// Whether pixel `p` of row `a` and pixel `q` of row `b` lie on one surface.
-#[inline]
-#[allow(
-    clippy::too_many_arguments,
-    reason = "hot inner test over two typed rows"
-)]
-fn similar(
-    a: &RowView<'_>,
-    p: usize,
-    b: &RowView<'_>,
-    q: usize,
-    w: usize,
-    nf: usize,
-    nc: usize,
-    params: &SmoothingParams,
-) -> bool {
-    if a.support[p] == 0.0 || b.support[q] == 0.0 {
-        return false;
+/// Horizontal recursion of one row: `F[x] = v[x] + g[x−1]·F[x−1]`, `B[x] = v[x] + g[x]·B[x+1]`,
+/// result `F + B − v`, for the three planes at once (three independent chains hide latency).
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+fn horizontal_row(planes: [&mut [f32]; 3], link: &[u8], decay: f32, scratch: &mut [f32]) {
+    let w = link.len();
+    let (gain, rest) = scratch.split_at_mut(w);
+    let (v0, rest) = rest.split_at_mut(w);
+    let (v1, v2) = rest.split_at_mut(w);
+    let v2 = &mut v2[..w];
+    for x in 0..w {
+        gain[x] = if link[x] & RIGHT != 0 { decay } else { 0.0 };
     }
-    // Every frequency's phase must be continuous: a depth jump passes one frequency's test by
-    // chance far more often than all of them.
-    for f in 0..nf {
-        if wrapped_diff(a.phase[f * w + p], b.phase[f * w + q]) > params.edge_phase_rad {
-            return false;
-        }
+    let [p0, p1, p2] = planes;
+    v0.copy_from_slice(p0);
+    v1.copy_from_slice(p1);
+    v2.copy_from_slice(p2);
+    for x in 1..w {
+        let g = gain[x - 1];
+        p0[x] += g * p0[x - 1];
+        p1[x] += g * p1[x - 1];
+        p2[x] += g * p2[x - 1];
     }
-    let mut sum_a = 0.0;
-    let mut sum_b = 0.0;
-    for c in 0..nc {
-        sum_a += a.colour[c * w + p].max(0.0);
-        sum_b += b.colour[c * w + q].max(0.0);
-    }
-    if (sum_a - sum_b).abs() > params.edge_colour_ratio * sum_a.max(sum_b) + 6.0 {
-        return false;
-    }
-    // Chromaticity does not change with shading, but does between skin and most backgrounds.
-    if nc == 3 && sum_a > 0.0 && sum_b > 0.0 {
-        for c in [0, 2] {
-            let ca = a.colour[c * w + p].max(0.0) / sum_a;
-            let cb = b.colour[c * w + q].max(0.0) / sum_b;
-            if (ca - cb).abs() > params.edge_chromaticity {
-                return false;
-            }
-        }
-    }
-    true
-}
-
-fn connect_row(
-    here: &RowView<'_>,
-    below: Option<&RowView<'_>>,
-    w: usize,
-    nf: usize,
-    nc: usize,
-    params: &SmoothingParams,
-    bits: &mut [u8],
-) {
-    for (x, b) in bits.iter_mut().enumerate() {
-        let mut v = 0u8;
-        if x + 1 < w && similar(here, x, here, x + 1, w, nf, nc, params) {
-            v |= RIGHT;
-        }
-        if let Some(below) = below {
-            if similar(here, x, below, x, w, nf, nc, params) {
-                v |= DOWN;
-            }
-        }
-        *b = v;
+    let (mut b0, mut b1, mut b2) = (0.0f32, 0.0f32, 0.0f32);
+    for x in (0..w).rev() {
+        let g = gain[x];
+        b0 = v0[x] + g * b0;
+        b1 = v1[x] + g * b1;
+        b2 = v2[x] + g * b2;
+        p0[x] += b0 - v0[x];
+        p1[x] += b1 - v1[x];
+        p2[x] += b2 - v2[x];
     }
 }
 
 fn horizontal_pass(out: &mut DecodeOutput, decay: f32) {
     let w = out.width;
     let band_px = BAND_ROWS * w;
+    // `smooth_tmp` holds 4·band_px per band (see `DecodeOutput::new`), so every zipped iterator
+    // below yields exactly one chunk per band.
     out.unit_re
         .par_chunks_mut(band_px)
         .zip(out.unit_im.par_chunks_mut(band_px))
         .zip(out.support.par_chunks_mut(band_px))
         .zip(out.connect.par_chunks(band_px))
-        .zip(out.smooth_tmp.par_chunks_mut(3 * band_px))
-        .for_each(|((((re, im), support), connect), tmp)| {
-            let rows = connect.len() / w;
-            for r in 0..rows {
+        .zip(out.smooth_tmp.par_chunks_mut(4 * band_px))
+        .for_each(|((((re, im), support), link), scratch)| {
+            for r in 0..link.len() / w {
                 let span = r * w..(r + 1) * w;
-                let link = &connect[span.clone()];
-                for (plane, buf) in [
-                    &mut re[span.clone()],
-                    &mut im[span.clone()],
-                    &mut support[span.clone()],
-                ]
-                .into_iter()
-                .enumerate()
-                {
-                    let orig = &mut tmp[plane * w..(plane + 1) * w];
-                    orig.copy_from_slice(buf);
-                    // Forward: F[x] = v[x] + a·F[x−1] across connected pairs.
-                    for x in 1..w {
-                        if link[x - 1] & RIGHT != 0 {
-                            buf[x] += decay * buf[x - 1];
-                        }
-                    }
-                    // Backward: B[x] = v[x] + a·B[x+1]; result F + B − v.
-                    let mut acc = 0.0f32;
-                    for x in (0..w).rev() {
-                        acc = if x + 1 < w && link[x] & RIGHT != 0 {
-                            orig[x] + decay * acc
-                        } else {
-                            orig[x]
-                        };
-                        buf[x] += acc - orig[x];
-                    }
-                }
+                horizontal_row(
+                    [
+                        &mut re[span.clone()],
+                        &mut im[span.clone()],
+                        &mut support[span.clone()],
+                    ],
+                    &link[span],
+                    decay,
+                    &mut scratch[..4 * w],
+                );
             }
         });
 }
 
+/// Rows of one vertical block plus the halo rows its recursion is warmed up on.
+pub(crate) const VERTICAL_BLOCK_ROWS: usize = 64;
+/// 0.7⁴⁸ ≈ 4·10⁻⁸: below f32 resolution, so blocks warmed up on this many rows give the same
+/// result as one recursion over the whole column.
+const VERTICAL_HALO_ROWS: usize = 48;
+
+/// Vertical recursion, in parallel blocks of rows. Each block warms its state up on the halo rows
+/// above (forward) and below (backward), reading the unmodified input copy.
 fn vertical_pass(out: &mut DecodeOutput, decay: f32) {
     let w = out.width;
     let h = out.height;
     let n = w * h;
+    // The input of this pass, kept unmodified while the blocks write their rows.
+    let orig = &mut out.smooth_tmp[..3 * n];
+    orig[..n].copy_from_slice(&out.unit_re);
+    orig[n..2 * n].copy_from_slice(&out.unit_im);
+    orig[2 * n..].copy_from_slice(&out.support);
+    let orig: &[f32] = orig;
     let connect = &out.connect;
-    let (orig_re, rest) = out.smooth_tmp.split_at_mut(n);
-    let (orig_im, orig_support) = rest.split_at_mut(n);
-    for (buf, orig) in [
-        (&mut out.unit_re, orig_re),
-        (&mut out.unit_im, orig_im),
-        (&mut out.support, orig_support),
-    ] {
-        orig.copy_from_slice(buf);
-        // Forward (top-down) sweep, row by row so each step is a contiguous, vectorised loop:
-        // F[y] = v[y] + a·F[y−1] across connected pairs.
-        for y in 1..h {
-            let (above, below) = buf.split_at_mut(y * w);
-            let prev = &above[(y - 1) * w..];
-            let cur = &mut below[..w];
-            let links = &connect[(y - 1) * w..y * w];
-            for x in 0..w {
-                if links[x] & DOWN != 0 {
-                    cur[x] += decay * prev[x];
-                }
-            }
-        }
-        backward_columns(buf, orig, connect, w, h, decay);
-    }
+    let block_px = VERTICAL_BLOCK_ROWS * w;
+    out.unit_re
+        .par_chunks_mut(block_px)
+        .zip(out.unit_im.par_chunks_mut(block_px))
+        .zip(out.support.par_chunks_mut(block_px))
+        .zip(out.vertical_state.par_chunks_mut(3 * w))
+        .enumerate()
+        .for_each(|(block, (((re, im), support), state))| {
+            let first = block * VERTICAL_BLOCK_ROWS;
+            let rows = re.len() / w;
+            let ctx = VerticalBlock {
+                orig,
+                connect,
+                w,
+                h,
+                n,
+                first,
+                rows,
+                decay,
+            };
+            vertical_block(&ctx, [re, im, support], state);
+        });
 }
 
-/// Backward (bottom-up) sweep of the vertical pass: adds `B − v` to the forward result in `buf`.
-/// `orig` holds `v` on entry and is overwritten with `B` row by row, which is all the state needed.
-fn backward_columns(
-    buf: &mut [f32],
-    orig: &mut [f32],
-    connect: &[u8],
+struct VerticalBlock<'a> {
+    orig: &'a [f32],
+    connect: &'a [u8],
     w: usize,
     h: usize,
+    n: usize,
+    first: usize,
+    rows: usize,
     decay: f32,
-) {
-    for y in (0..h).rev() {
-        let (upper, lower) = orig.split_at_mut((y + 1) * w);
-        let v_and_b = &mut upper[y * w..];
-        let row_out = &mut buf[y * w..(y + 1) * w];
-        let links = &connect[y * w..(y + 1) * w];
-        if y + 1 < h {
-            let b_below = &lower[..w];
+}
+
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+fn vertical_block(c: &VerticalBlock<'_>, planes: [&mut [f32]; 3], state: &mut [f32]) {
+    let w = c.w;
+    let [p0, p1, p2] = planes;
+    let (s0, rest) = state.split_at_mut(w);
+    let (s1, s2) = rest.split_at_mut(w);
+    let v = |plane: usize, y: usize| &c.orig[plane * c.n + y * w..plane * c.n + (y + 1) * w];
+    // Link from row y to row y + 1.
+    let links = |y: usize| &c.connect[y * w..(y + 1) * w];
+    // Forward: F[y] = v[y] + g(y−1→y)·F[y−1], warmed up on the halo above.
+    let warm_start = c.first.saturating_sub(VERTICAL_HALO_ROWS);
+    s0.fill(0.0);
+    s1.fill(0.0);
+    s2.fill(0.0);
+    for y in warm_start..c.first + c.rows {
+        let (a0, a1, a2) = (v(0, y), v(1, y), v(2, y));
+        if y > warm_start {
+            let l = links(y - 1);
             for x in 0..w {
-                let v = v_and_b[x];
-                let b = if links[x] & DOWN != 0 {
-                    v + decay * b_below[x]
-                } else {
-                    v
-                };
-                row_out[x] += b - v;
-                v_and_b[x] = b;
+                let g = if l[x] & DOWN != 0 { c.decay } else { 0.0 };
+                s0[x] = a0[x] + g * s0[x];
+                s1[x] = a1[x] + g * s1[x];
+                s2[x] = a2[x] + g * s2[x];
+            }
+        } else {
+            s0.copy_from_slice(a0);
+            s1.copy_from_slice(a1);
+            s2.copy_from_slice(a2);
+        }
+        if y >= c.first {
+            let r = (y - c.first) * w;
+            p0[r..r + w].copy_from_slice(s0);
+            p1[r..r + w].copy_from_slice(s1);
+            p2[r..r + w].copy_from_slice(s2);
+        }
+    }
+    // Backward: B[y] = v[y] + g(y→y+1)·B[y+1], warmed up on the halo below; adds B − v.
+    let warm_end = (c.first + c.rows + VERTICAL_HALO_ROWS).min(c.h);
+    s0.fill(0.0);
+    s1.fill(0.0);
+    s2.fill(0.0);
+    for y in (c.first..warm_end).rev() {
+        let (a0, a1, a2) = (v(0, y), v(1, y), v(2, y));
+        if y + 1 < warm_end {
+            let l = links(y);
+            for x in 0..w {
+                let g = if l[x] & DOWN != 0 { c.decay } else { 0.0 };
+                s0[x] = a0[x] + g * s0[x];
+                s1[x] = a1[x] + g * s1[x];
+                s2[x] = a2[x] + g * s2[x];
+            }
+        } else {
+            s0.copy_from_slice(a0);
+            s1.copy_from_slice(a1);
+            s2.copy_from_slice(a2);
+        }
+        if y < c.first + c.rows {
+            let r = (y - c.first) * w;
+            for x in 0..w {
+                p0[r + x] += s0[x] - a0[x];
+                p1[r + x] += s1[x] - a1[x];
+                p2[r + x] += s2[x] - a2[x];
             }
         }
-        // The last row: B = v, nothing to add.
     }
 }
 
@@ -307,6 +273,90 @@ mod tests {
         let q = p + 1;
         assert!((out.unit_im[p].atan2(out.unit_re[p]) - 0.5).abs() < 1e-4);
         assert!((out.unit_im[q].atan2(out.unit_re[q]) - 2.5).abs() < 1e-4);
+    }
+
+    /// The straightforward recursion over whole rows, then whole columns.
+    fn reference(v: &[f32], links: &[u8], w: usize, h: usize, a: f32) -> Vec<f32> {
+        let mut horiz = v.to_vec();
+        for y in 0..h {
+            let row = &v[y * w..(y + 1) * w];
+            let g = |x: usize| {
+                if links[y * w + x] & RIGHT != 0 {
+                    a
+                } else {
+                    0.0
+                }
+            };
+            let mut fwd = vec![0.0; w];
+            let mut bwd = vec![0.0; w];
+            for x in 0..w {
+                fwd[x] = row[x] + if x > 0 { g(x - 1) * fwd[x - 1] } else { 0.0 };
+            }
+            for x in (0..w).rev() {
+                bwd[x] = row[x] + if x + 1 < w { g(x) * bwd[x + 1] } else { 0.0 };
+            }
+            for x in 0..w {
+                horiz[y * w + x] = fwd[x] + bwd[x] - row[x];
+            }
+        }
+        let mut out = horiz.clone();
+        for x in 0..w {
+            let g = |y: usize| if links[y * w + x] & DOWN != 0 { a } else { 0.0 };
+            let col: Vec<f32> = (0..h).map(|y| horiz[y * w + x]).collect();
+            let mut fwd = vec![0.0; h];
+            let mut bwd = vec![0.0; h];
+            for y in 0..h {
+                fwd[y] = col[y] + if y > 0 { g(y - 1) * fwd[y - 1] } else { 0.0 };
+            }
+            for y in (0..h).rev() {
+                bwd[y] = col[y] + if y + 1 < h { g(y) * bwd[y + 1] } else { 0.0 };
+            }
+            for y in 0..h {
+                out[y * w + x] = fwd[y] + bwd[y] - col[y];
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn blocked_parallel_passes_match_the_plain_recursion() {
+        // 301 rows: several vertical blocks and a short last one.
+        let (w, h) = (37, 301);
+        let mut out = output(w, h);
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as f32 / (1u64 << 31) as f32
+        };
+        for i in 0..w * h {
+            out.unit_re[i] = next() * 2.0 - 1.0;
+            out.unit_im[i] = next() * 2.0 - 1.0;
+            out.support[i] = f32::from(next() > 0.1);
+            // Mostly connected, with random cuts in both directions.
+            out.connect[i] = u8::from(next() > 0.15) * RIGHT | u8::from(next() > 0.15) * DOWN;
+        }
+        for x in 0..w {
+            out.connect[(h - 1) * w + x] &= !DOWN;
+        }
+        for y in 0..h {
+            out.connect[y * w + w - 1] &= !RIGHT;
+        }
+        let expected: Vec<Vec<f32>> = [&out.unit_re, &out.unit_im, &out.support]
+            .iter()
+            .map(|v| reference(v, &out.connect, w, h, 0.7))
+            .collect();
+        horizontal_pass(&mut out, 0.7);
+        vertical_pass(&mut out, 0.7);
+        for (got, want) in [&out.unit_re, &out.unit_im, &out.support]
+            .iter()
+            .zip(&expected)
+        {
+            for (g, e) in got.iter().zip(want) {
+                assert!((g - e).abs() <= 1e-5 * (1.0 + e.abs()), "{g} vs {e}");
+            }
+        }
     }
 
     #[test]

@@ -110,16 +110,24 @@ fn chebyshev_row(c: &Consts, row: Row<'_>) {
     let (am0, rest) = row.amp.split_at(w);
     let (am1, am2) = rest.split_at(w);
     let (f0, fa, fb) = (c.f[0], c.f[1], c.f[2]);
+    let inv_f1 = 1.0 / c.f1;
+    // The coarse coordinate first, in a loop of its own so the main loop has no calls and
+    // vectorises.
+    if robust {
+        for x in 0..w {
+            row.coarse[x] = unit_angle(row.re[x], row.im[x]) * inv_f1;
+            if row.support[x] < p.smoothing.min_support {
+                row.flags[x] |= invalid::LOW_SUPPORT;
+            }
+        }
+    } else {
+        for x in 0..w {
+            row.coarse[x] = paper_coarse(ph0[x], ph1[x], ph2[x]) * inv_f1;
+        }
+    }
     for x in 0..w {
         let mut reason = row.flags[x];
-        let xc = if robust {
-            if row.support[x] < p.smoothing.min_support {
-                reason |= invalid::LOW_SUPPORT;
-            }
-            unit_angle(row.re[x], row.im[x]) / c.f1
-        } else {
-            paper_coarse(ph0[x], ph1[x], ph2[x]) / c.f1
-        };
+        let xc = row.coarse[x];
         let (x0, r0) = unwrap_one(xc, ph0[x], f0);
         let (x1, r1) = unwrap_one(xc, ph1[x], fa);
         let (x2, r2) = unwrap_one(xc, ph2[x], fb);
@@ -130,6 +138,7 @@ fn chebyshev_row(c: &Consts, row: Row<'_>) {
         } else {
             x0
         };
+        // (A zero total only happens on pixels already flagged for low amplitude.)
         if r0.max(r1).max(r2) > p.max_rounding_residual {
             reason |= invalid::UNWRAP_MARGIN;
         }
@@ -143,7 +152,6 @@ fn chebyshev_row(c: &Consts, row: Row<'_>) {
         if !(-0.5..c.x_max).contains(&combined) {
             reason |= invalid::OUT_OF_RANGE;
         }
-        row.coarse[x] = xc;
         row.flags[x] = reason;
         row.coord[x] = if reason == 0 { combined } else { f32::NAN };
     }
@@ -191,7 +199,8 @@ pub fn paper_coarse(phase0: f32, phase1: f32, phase2: f32) -> f32 {
 /// unwrapped coordinate and the rounding residual in `[0, 0.5]`.
 #[inline]
 pub fn unwrap_one(xc: f32, phase: f32, f: f32) -> (f32, f32) {
-    let arg = (xc * f - phase) / TAU;
+    const INV_TAU: f32 = 1.0 / TAU;
+    let arg = (xc * f - phase) * INV_TAU;
     let k = round_fast(arg);
     ((TAU * k + phase) / f, (arg - k).abs())
 }
