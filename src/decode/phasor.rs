@@ -73,6 +73,7 @@ struct RowOut<'a> {
     clippy::too_many_arguments,
     reason = "a stage kernel over one row's typed buffers"
 )]
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
 fn solve_row(
     solver: &WindowSolver,
     frames: &[&Frame],
@@ -92,42 +93,57 @@ fn solve_row(
     let sat_level = params.saturation_level;
 
     // Unpack observations into planes: plane k·channels + j holds frame k, camera channel j.
+    // Each loop reads one interleaved row with fixed stride so it vectorises.
     for (k, frame) in frames.iter().enumerate() {
         let src_channels = frame.channels;
         let src = &frame.data[y * w * src_channels..(y + 1) * w * src_channels];
-        if solver.channels == src_channels {
-            for j in 0..src_channels {
-                let plane = &mut obs[(k * src_channels + j) * w..(k * src_channels + j + 1) * w];
-                for (x, v) in plane.iter_mut().enumerate() {
-                    let s = src[x * src_channels + j];
-                    *v = f32::from(s);
-                    if s >= sat_level {
-                        saturated[x] = 1.0;
-                    }
-                }
+        if src_channels == 1 {
+            let plane = &mut obs[k * w..(k + 1) * w];
+            for x in 0..w {
+                let s = src[x];
+                plane[x] = f32::from(s);
+                saturated[x] = saturated[x].max(f32::from(u8::from(s >= sat_level)));
+            }
+        } else if solver.channels == 3 {
+            let (p0, rest) = obs[k * 3 * w..(k + 1) * 3 * w].split_at_mut(w);
+            let (p1, p2) = rest.split_at_mut(w);
+            for (x, px) in src.chunks_exact(3).enumerate() {
+                let (r, g, b) = (px[0], px[1], px[2]);
+                p0[x] = f32::from(r);
+                p1[x] = f32::from(g);
+                p2[x] = f32::from(b);
+                let hi = r.max(g).max(b);
+                saturated[x] = saturated[x].max(f32::from(u8::from(hi >= sat_level)));
             }
         } else {
             // Gray patterns seen by a colour camera: decode the channel mean.
             let plane = &mut obs[k * w..(k + 1) * w];
-            for (x, v) in plane.iter_mut().enumerate() {
-                let px = &src[x * 3..x * 3 + 3];
-                *v = (f32::from(px[0]) + f32::from(px[1]) + f32::from(px[2])) / 3.0;
-                if px.iter().any(|&s| s >= sat_level) {
-                    saturated[x] = 1.0;
-                }
+            for (x, px) in src.chunks_exact(3).enumerate() {
+                let (r, g, b) = (px[0], px[1], px[2]);
+                plane[x] = (f32::from(r) + f32::from(g) + f32::from(b)) * (1.0 / 3.0);
+                let hi = r.max(g).max(b);
+                saturated[x] = saturated[x].max(f32::from(u8::from(hi >= sat_level)));
             }
         }
     }
 
-    // u = M⁺ · obs, one unknown plane at a time.
+    // u = M⁺ · obs, one unknown plane at a time. Common window sizes get an unrolled kernel that
+    // reads every observation plane once per pixel and writes each unknown once.
     for q in 0..n_u {
+        let coeffs = &solver.pinv[q * n_obs..(q + 1) * n_obs];
         let uq = &mut u[q * w..(q + 1) * w];
-        uq.fill(0.0);
-        for o in 0..n_obs {
-            let coeff = solver.pinv[q * n_obs + o];
-            let plane = &obs[o * w..(o + 1) * w];
-            for (acc, &v) in uq.iter_mut().zip(plane) {
-                *acc += coeff * v;
+        match n_obs {
+            9 => dot_planes::<9>(coeffs, obs, uq),
+            7 => dot_planes::<7>(coeffs, obs, uq),
+            12 => dot_planes::<12>(coeffs, obs, uq),
+            _ => {
+                uq.fill(0.0);
+                for (o, &coeff) in coeffs.iter().enumerate() {
+                    let plane = &obs[o * w..(o + 1) * w];
+                    for (acc, &v) in uq.iter_mut().zip(plane) {
+                        *acc += coeff * v;
+                    }
+                }
             }
         }
     }
@@ -161,25 +177,35 @@ fn solve_row(
             row.im[x] = s0 * c1 - c0 * s1 + s1 * c2 - c1 * s2;
         }
     }
+    let min_amplitude = params.min_amplitude;
     for x in 0..w {
-        let mut min_amp = f32::INFINITY;
-        for f in 0..nf {
+        let mut min_amp = row.amp[x];
+        for f in 1..nf {
             min_amp = min_amp.min(row.amp[f * w + x]);
         }
-        let mut reason = 0u8;
-        if min_amp.is_nan() || min_amp < params.min_amplitude {
-            reason |= invalid::LOW_AMPLITUDE;
-        }
-        if saturated[x] > 0.0 {
-            reason |= invalid::SATURATED;
-        }
+        // A NaN amplitude counts as low.
+        let low = u8::from(min_amp.is_nan() | (min_amp < min_amplitude));
+        let sat = u8::from(saturated[x] > 0.0);
+        let reason = low * invalid::LOW_AMPLITUDE | sat * invalid::SATURATED;
         row.flags[x] = reason;
-        if reason == 0 {
-            row.support[x] = 1.0;
-        } else {
-            row.support[x] = 0.0;
-            row.re[x] = 0.0;
-            row.im[x] = 0.0;
+        let keep = f32::from(u8::from(reason == 0));
+        row.support[x] = keep;
+        row.re[x] *= keep;
+        row.im[x] *= keep;
+    }
+}
+
+/// `out[x] = Σ_o coeffs[o] · planes[o][x]` for `N` planes of `out.len()` values.
+#[inline(always)]
+fn dot_planes<const N: usize>(coeffs: &[f32], planes: &[f32], out: &mut [f32]) {
+    let w = out.len();
+    let c: [f32; N] = std::array::from_fn(|o| coeffs[o]);
+    let p: [&[f32]; N] = std::array::from_fn(|o| &planes[o * w..(o + 1) * w]);
+    for x in 0..w {
+        let mut acc = 0.0;
+        for o in 0..N {
+            acc += c[o] * p[o][x];
         }
+        out[x] = acc;
     }
 }
