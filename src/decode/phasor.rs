@@ -186,7 +186,7 @@ fn solve_row(
         // A NaN amplitude counts as low.
         let low = u8::from(min_amp.is_nan() | (min_amp < min_amplitude));
         let sat = u8::from(saturated[x] > 0.0);
-        let reason = low * invalid::LOW_AMPLITUDE | sat * invalid::SATURATED;
+        let reason = (low * invalid::LOW_AMPLITUDE) | (sat * invalid::SATURATED);
         row.flags[x] = reason;
         let keep = f32::from(u8::from(reason == 0));
         row.support[x] = keep;

@@ -335,7 +335,7 @@ mod tests {
             out.unit_im[i] = next() * 2.0 - 1.0;
             out.support[i] = f32::from(next() > 0.1);
             // Mostly connected, with random cuts in both directions.
-            out.connect[i] = u8::from(next() > 0.15) * RIGHT | u8::from(next() > 0.15) * DOWN;
+            out.connect[i] = (u8::from(next() > 0.15) * RIGHT) | (u8::from(next() > 0.15) * DOWN);
         }
         for x in 0..w {
             out.connect[(h - 1) * w + x] &= !DOWN;
