@@ -1,1 +1,73 @@
-fn main() {}
+//! Decode and virtual-rig benchmarks at 640×400 and the paper's 1920×1200.
+//!
+//! `cargo bench -p tremorscan --bench decode`. Figures go to `docs/benchmarks.md`.
+#![allow(clippy::unwrap_used, reason = "benchmark setup")]
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use std::time::Duration;
+use tremorscan::decode::{decode_window, DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
+use tremorscan::frame::Frame;
+use tremorscan::rig::{RigConfig, VirtualRig};
+
+const SIZES: [(usize, usize); 2] = [(640, 400), (1920, 1200)];
+
+fn rig(width: usize, height: usize) -> VirtualRig {
+    let config = RigConfig::paper(width, height).unwrap();
+    let seq = config.default_sequence().unwrap();
+    VirtualRig::new(config, seq).unwrap()
+}
+
+fn bench_decode(c: &mut Criterion) {
+    let mut group = c.benchmark_group("decode_cps_rgb_window");
+    group
+        .sample_size(30)
+        .measurement_time(Duration::from_secs(8));
+    for (w, h) in SIZES {
+        let rig = rig(w, h);
+        let frames: Vec<Frame> = (0..3)
+            .map(|i| {
+                let mut f = rig.blank_frame();
+                rig.render(i, &mut f, None).unwrap();
+                f
+            })
+            .collect();
+        let refs: Vec<&Frame> = frames.iter().collect();
+        let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+        let mut out = DecodeOutput::new(w, h, &solver);
+        for (name, method) in [
+            ("robust", UnwrapMethod::ChebyshevRobust),
+            ("per_pixel", UnwrapMethod::ChebyshevPerPixel),
+        ] {
+            let params = DecodeParams {
+                unwrap: method,
+                ..DecodeParams::default()
+            };
+            group.bench_with_input(BenchmarkId::new(name, format!("{w}x{h}")), &(), |b, ()| {
+                b.iter(|| decode_window(&solver, &refs, &params, Some(65), &mut out).unwrap());
+            });
+        }
+    }
+    group.finish();
+}
+
+fn bench_rig(c: &mut Criterion) {
+    let mut group = c.benchmark_group("virtual_rig_render");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(10));
+    for (w, h) in SIZES {
+        let rig = rig(w, h);
+        let mut frame = rig.blank_frame();
+        let mut index = 0u64;
+        group.bench_function(BenchmarkId::from_parameter(format!("{w}x{h}")), |b| {
+            b.iter(|| {
+                index += 1;
+                rig.render(index, &mut frame, None).unwrap();
+            });
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_decode, bench_rig);
+criterion_main!(benches);

@@ -68,6 +68,16 @@ pub enum DecodeError {
     WindowTooLong { observations: usize, max: usize },
     #[error("numerical failure while inverting the window system: {0}")]
     Numerical(String),
+    #[error(
+        "frame {position} of the window shows pattern {got}, the solver expects pattern {expected}"
+    )]
+    OrderMismatch {
+        position: usize,
+        expected: usize,
+        got: usize,
+    },
+    #[error("frame size {width}×{height} is empty")]
+    EmptyFrame { width: usize, height: usize },
     #[error("the window needs {expected} frames, got {got}")]
     WrongFrameCount { expected: usize, got: usize },
     #[error("an RGB pattern sequence needs RGB camera frames, got {0} channel(s)")]
@@ -281,8 +291,22 @@ pub fn decode_window(
             got: frames.len(),
         });
     }
+    if let Some((k, frame)) = frames
+        .iter()
+        .enumerate()
+        .find(|(k, f)| f.pattern_index != solver.order[*k])
+    {
+        return Err(DecodeError::OrderMismatch {
+            position: k,
+            expected: solver.order[k],
+            got: frame.pattern_index,
+        });
+    }
     let first = frames[0];
     let (width, height) = (first.width, first.height);
+    if width == 0 || height == 0 {
+        return Err(DecodeError::EmptyFrame { width, height });
+    }
     if solver.channels == 3 && first.channels != 3 {
         return Err(DecodeError::NeedsColourFrames(first.channels));
     }

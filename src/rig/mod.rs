@@ -11,6 +11,7 @@
 
 pub mod evaluate;
 pub mod noise;
+pub mod primitives;
 pub mod render;
 pub mod scene;
 pub mod truth;
@@ -236,14 +237,19 @@ impl VirtualRig {
         frame.data.resize(w * h * 3, 0);
         frame.time_s = time_s;
         frame.pattern_index = pattern_index;
-        let posed = self.scene.at(time_s);
-        let ctx = render::Context {
-            rig: self,
-            posed: &posed,
+        let mut posed = self.scene.at(time_s);
+        posed.cull(
+            &self.config.camera,
+            &self.config.projector,
+            &self.config.projector_from_camera,
+        );
+        let ctx = render::Context::new(
+            self,
+            &posed,
             entry,
             noise_frame,
-            projector_centre: self.projector_centre_in_camera,
-        };
+            self.projector_centre_in_camera,
+        );
         match truth {
             Some(t) => {
                 t.resize(w, h);

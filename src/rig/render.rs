@@ -13,9 +13,62 @@ type V3 = Vector3<f64>;
 pub(crate) struct Context<'a> {
     pub rig: &'a VirtualRig,
     pub posed: &'a PosedScene,
-    pub entry: PatternEntry,
     pub noise_frame: u64,
     pub projector_centre: V3,
+    /// Per projector channel (R, G, B): frequency (rad/px), shift (rad) and the AC attenuation of
+    /// skin's subsurface blur. Gray entries drive all three channels with the same code.
+    pub channels: [ChannelPlan; 3],
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ChannelPlan {
+    frequency: f64,
+    shift_rad: f64,
+    skin_attenuation: f64,
+}
+
+impl<'a> Context<'a> {
+    pub fn new(
+        rig: &'a VirtualRig,
+        posed: &'a PosedScene,
+        entry: PatternEntry,
+        noise_frame: u64,
+        projector_centre: V3,
+    ) -> Self {
+        let codes = entry.codes();
+        let channels = std::array::from_fn(|i| {
+            let code = codes[i.min(codes.len() - 1)];
+            let frequency = rig.sequence.frequency(code.m);
+            // A Gaussian blur of σ px scales a sinusoid of frequency f by exp(−(fσ)²/2) and
+            // keeps its phase.
+            let fs = frequency * rig.config.subsurface_sigma_px;
+            ChannelPlan {
+                frequency,
+                shift_rad: code.shift_rad,
+                skin_attenuation: (-0.5 * fs * fs).exp(),
+            }
+        });
+        Self {
+            rig,
+            posed,
+            noise_frame,
+            projector_centre,
+            channels,
+        }
+    }
+}
+
+/// The projected level in `[0, 1]` of `plan` at coordinate `x`, quantised to `levels` steps. The
+/// phase (hundreds of radians) is reduced to `(−2π, 2π)` in f64, by truncation rather than a
+/// libm `fmod`, and its cosine taken in f32.
+#[inline]
+fn projected_level(plan: &ChannelPlan, x: f64, levels: f64) -> f64 {
+    use std::f64::consts::TAU;
+    let phase = plan.frequency * x + plan.shift_rad;
+    let phase = phase - TAU * ((phase * (1.0 / TAU)) as i64 as f64);
+    let ideal = 0.5 + 0.5 * f64::from((phase as f32).cos());
+    // Round half up by truncation: the value is never negative.
+    (ideal * levels + 0.5) as u32 as f64 / levels
 }
 
 /// What one camera pixel sees.
@@ -76,7 +129,9 @@ fn shade_pixel(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize) -> Sample {
     // Projected light per projector channel reaching the camera (before cross-talk), and albedo.
     let mut projected = [0.0f64; 3];
     let mut albedo = [0.0f64; 3];
-    if let Some(hit) = ctx.posed.intersect(&origin, &dir) {
+    let w = ctx.rig.width();
+    let pixel_uv = ((pixel % w) as f64, (pixel / w) as f64);
+    if let Some(hit) = ctx.posed.intersect(&origin, &dir, pixel_uv) {
         let point = dir * hit.distance_mm;
         let normal = if hit.normal.dot(&dir) > 0.0 {
             -hit.normal
@@ -101,24 +156,20 @@ fn shade_pixel(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize) -> Sample {
             .project(&point_in_projector)
             .filter(|&(u, v)| cfg.projector.contains(u, v));
         if let (Some((u, v)), true) = (lit_pixel, lambert > 0.0) {
-            let shadowed = ctx
-                .posed
-                .hand_occludes(&(point + normal * 1e-3), &light_dir, distance);
+            let shadowed =
+                ctx.posed
+                    .hand_occludes(&(point + normal * 1e-3), &light_dir, distance, (u, v));
             if !shadowed {
                 let x = seq.axis.coordinate(u, v);
                 sample.coordinate_px = x as f32;
                 let falloff = (cfg.reference_distance_mm / distance).powi(2);
                 let shade = lambert * falloff * cfg.projector_gain_gray;
-                let codes = ctx.entry.codes();
+                let levels = f64::from((1u32 << seq.projector_bits) - 1);
                 for (i, p) in projected.iter_mut().enumerate() {
-                    // Gray entries drive all three projector channels with the same code.
-                    let code = codes[i.min(codes.len() - 1)];
-                    let mut level = seq.intensity(code, x);
+                    let plan = &ctx.channels[i];
+                    let mut level = projected_level(plan, x, levels);
                     if skin {
-                        // A Gaussian blur of σ px scales a sinusoid of frequency f by
-                        // exp(−(fσ)²/2) and keeps its phase.
-                        let f = seq.frequency(code.m) * cfg.subsurface_sigma_px;
-                        level = 0.5 + (level - 0.5) * (-0.5 * f * f).exp();
+                        level = 0.5 + (level - 0.5) * plan.skin_attenuation;
                     }
                     *p = shade * level * albedo[i];
                 }
@@ -131,8 +182,9 @@ fn shade_pixel(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize) -> Sample {
     let noise = [n0, n1, n2];
     for j in 0..3 {
         let signal = camera[j] + cfg.ambient_gray * albedo[j];
-        let value = signal + cfg.noise.sigma_at(signal) * noise[j];
-        sample.rgb[j] = value.round().clamp(0.0, 255.0) as u8;
+        let value = signal + cfg.noise.sigma_at(signal) * f64::from(noise[j]);
+        // Round half up by truncation after clamping to the sensor's range.
+        sample.rgb[j] = (value.clamp(0.0, 255.0) + 0.5) as u8;
     }
     sample
 }

@@ -6,6 +6,8 @@
 //! [`Scene::at`] poses every primitive at one instant, so each camera frame is rendered at its own
 //! time and motion inside the decode window is real.
 
+use super::primitives::{Capsule, Ellipsoid, HandPart, PixelBox, Shape};
+use crate::geometry::{LensModel, Pose};
 use nalgebra::{Rotation3, Unit, Vector3};
 use std::f64::consts::TAU;
 
@@ -81,19 +83,6 @@ pub const POINT_NAMES: [&str; 6] = [
     "back_of_hand",
 ];
 
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Capsule {
-    a: V3,
-    b: V3,
-    radius: f64,
-}
-
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Ellipsoid {
-    centre: V3,
-    radii: V3,
-}
-
 /// A ray hit.
 #[derive(Debug, Clone, Copy)]
 pub struct Hit {
@@ -108,10 +97,7 @@ pub struct PosedScene {
     table_point: V3,
     table_normal: V3,
     pub table_texture: bool,
-    palm: Option<Ellipsoid>,
-    capsules: Vec<Capsule>,
-    bound_centre: V3,
-    bound_radius: f64,
+    parts: Vec<HandPart>,
     /// True positions of [`POINT_NAMES`] (empty without a hand), camera frame, mm.
     pub points: Vec<V3>,
 }
@@ -144,10 +130,7 @@ impl Scene {
             table_point,
             table_normal,
             table_texture: c.table_texture,
-            palm: None,
-            capsules: Vec::with_capacity(10),
-            bound_centre: V3::zeros(),
-            bound_radius: 0.0,
+            parts: Vec::with_capacity(11),
             points: Vec::with_capacity(POINT_NAMES.len()),
         };
         let Some(tremor) = c.hand else {
@@ -156,10 +139,7 @@ impl Scene {
         let omega_t = TAU * tremor.frequency_hz * time_s;
         let lift = tremor.hand_amplitude_mm * omega_t.sin();
         let palm_centre = V3::new(45.0, 0.0, c.table_distance_mm - c.hand_height_mm + lift);
-        let palm = Ellipsoid {
-            centre: palm_centre,
-            radii: V3::new(46.0, 42.0, 12.0),
-        };
+        let palm = Ellipsoid::new(palm_centre, V3::new(46.0, 42.0, 12.0));
         let up = V3::new(0.0, 0.0, -1.0);
         let mut tips = Vec::with_capacity(5);
         for &(kx, ky, l1, l2, radius, phase) in &FINGERS {
@@ -177,40 +157,22 @@ impl Scene {
             let rot = Rotation3::from_axis_angle(&Vector3::y_axis(), alpha);
             let joint = knuckle + rot * rest_d1 * l1;
             let tip = joint + rot * rest_d2 * l2;
-            posed.capsules.push(Capsule {
-                a: knuckle,
-                b: joint,
-                radius,
-            });
-            posed.capsules.push(Capsule {
-                a: joint,
-                b: tip,
-                radius,
-            });
+            posed.push(Shape::Capsule(Capsule::new(knuckle, joint, radius)));
+            posed.push(Shape::Capsule(Capsule::new(joint, tip, radius)));
             tips.push(surface_above(joint, tip, radius, 0.8, up));
         }
         // Thumb: two segments towards +y, trembling with the hand only.
         let base = palm_centre + V3::new(-8.0, 34.0, 3.0);
         let joint = base + V3::new(-22.0, 22.0, 4.0);
         let tip = joint + V3::new(-24.0, 8.0, 6.0);
-        posed.capsules.push(Capsule {
-            a: base,
-            b: joint,
-            radius: 10.5,
-        });
-        posed.capsules.push(Capsule {
-            a: joint,
-            b: tip,
-            radius: 9.5,
-        });
+        posed.push(Shape::Capsule(Capsule::new(base, joint, 10.5)));
+        posed.push(Shape::Capsule(Capsule::new(joint, tip, 9.5)));
         tips.push(surface_above(joint, tip, 9.5, 0.8, up));
         posed.points.extend(tips);
         posed
             .points
             .push(palm_centre + V3::new(0.0, 0.0, -palm.radii.z));
-        posed.palm = Some(palm);
-        posed.bound_centre = palm_centre + V3::new(-40.0, 10.0, 0.0);
-        posed.bound_radius = 140.0;
+        posed.push(Shape::Ellipsoid(palm));
         posed
     }
 }
@@ -223,8 +185,32 @@ fn surface_above(a: V3, b: V3, radius: f64, s: f64, up: V3) -> V3 {
 }
 
 impl PosedScene {
-    /// Nearest hit along `origin + t·dir` (`dir` unit) with `t > 1e-6`.
-    pub fn intersect(&self, origin: &V3, dir: &V3) -> Option<Hit> {
+    fn push(&mut self, shape: Shape) {
+        self.parts.push(HandPart {
+            shape,
+            camera_box: PixelBox::EVERYWHERE,
+            projector_box: PixelBox::EVERYWHERE,
+        });
+    }
+
+    /// Computes each hand part's bounding box in the camera and projector images, so that rays
+    /// through pixels outside a box skip that part. Without this call every part is tested.
+    pub fn cull(
+        &mut self,
+        camera: &LensModel,
+        projector: &LensModel,
+        projector_from_camera: &Pose,
+    ) {
+        for part in &mut self.parts {
+            let (centre, radius) = part.shape.bounding_sphere();
+            part.camera_box = PixelBox::around_sphere(camera, &Pose::identity(), centre, radius);
+            part.projector_box =
+                PixelBox::around_sphere(projector, projector_from_camera, centre, radius);
+        }
+    }
+
+    /// Nearest hit along the camera ray `dir` (unit) through camera pixel `pixel`.
+    pub fn intersect(&self, origin: &V3, dir: &V3, pixel: (f64, f64)) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let denom = dir.dot(&self.table_normal);
         if denom.abs() > 1e-12 {
@@ -237,52 +223,40 @@ impl PosedScene {
                 });
             }
         }
-        if self.palm.is_some() && self.ray_hits_bound(origin, dir) {
-            let limit = best.map_or(f64::INFINITY, |h| h.distance_mm);
-            if let Some(hit) = self.intersect_hand(origin, dir, limit) {
-                best = Some(hit);
+        let mut limit = best.map_or(f64::INFINITY, |h| h.distance_mm);
+        for part in &self.parts {
+            if !part.camera_box.contains(pixel) {
+                continue;
+            }
+            if let Some((t, normal)) = part.shape.intersect(origin, dir) {
+                if t < limit {
+                    limit = t;
+                    best = Some(Hit {
+                        distance_mm: t,
+                        normal,
+                        material: Material::Skin,
+                    });
+                }
             }
         }
         best
     }
 
-    /// Whether the hand blocks the segment from `origin` to `origin + max_t·dir`.
-    pub fn hand_occludes(&self, origin: &V3, dir: &V3, max_t: f64) -> bool {
-        self.palm.is_some()
-            && self.ray_hits_bound(origin, dir)
-            && self.intersect_hand(origin, dir, max_t).is_some()
-    }
-
-    fn ray_hits_bound(&self, origin: &V3, dir: &V3) -> bool {
-        let oc = origin - self.bound_centre;
-        let b = oc.dot(dir);
-        let c = oc.norm_squared() - self.bound_radius * self.bound_radius;
-        c < 0.0 || (b < 0.0 && b * b - c >= 0.0)
-    }
-
-    fn intersect_hand(&self, origin: &V3, dir: &V3, limit: f64) -> Option<Hit> {
-        let mut best_t = limit;
-        let mut best_normal = None;
-        if let Some(palm) = &self.palm {
-            if let Some((t, n)) = palm.intersect(origin, dir) {
-                if t < best_t {
-                    best_t = t;
-                    best_normal = Some(n);
-                }
-            }
-        }
-        for capsule in &self.capsules {
-            if let Some((t, n)) = capsule.intersect(origin, dir) {
-                if t < best_t {
-                    best_t = t;
-                    best_normal = Some(n);
-                }
-            }
-        }
-        best_normal.map(|normal| Hit {
-            distance_mm: best_t,
-            normal,
-            material: Material::Skin,
+    /// Whether the hand blocks the segment from `origin` to `origin + max_t·dir`, where
+    /// `projector_pixel` is where `origin` appears in the projector image.
+    pub fn hand_occludes(
+        &self,
+        origin: &V3,
+        dir: &V3,
+        max_t: f64,
+        projector_pixel: (f64, f64),
+    ) -> bool {
+        self.parts.iter().any(|part| {
+            part.projector_box.contains(projector_pixel)
+                && part
+                    .shape
+                    .intersect(origin, dir)
+                    .is_some_and(|(t, _)| t < max_t)
         })
     }
 
@@ -305,94 +279,9 @@ impl PosedScene {
 /// Skin albedo per projector channel (R, G, B).
 pub const SKIN_ALBEDO: [f64; 3] = [0.78, 0.55, 0.44];
 
-impl Ellipsoid {
-    fn intersect(&self, origin: &V3, dir: &V3) -> Option<(f64, V3)> {
-        let o = (origin - self.centre).component_div(&self.radii);
-        let d = dir.component_div(&self.radii);
-        let a = d.norm_squared();
-        let b = o.dot(&d);
-        let c = o.norm_squared() - 1.0;
-        let h = b * b - a * c;
-        if h < 0.0 {
-            return None;
-        }
-        let t = (-b - h.sqrt()) / a;
-        if t <= 1e-6 {
-            return None;
-        }
-        let p = origin + dir * t - self.centre;
-        let r2 = self.radii.component_mul(&self.radii);
-        Some((t, p.component_div(&r2).normalize()))
-    }
-}
-
-impl Capsule {
-    fn intersect(&self, origin: &V3, dir: &V3) -> Option<(f64, V3)> {
-        let ba = self.b - self.a;
-        let oa = origin - self.a;
-        let baba = ba.dot(&ba);
-        let bard = ba.dot(dir);
-        let baoa = ba.dot(&oa);
-        let rdoa = dir.dot(&oa);
-        let oaoa = oa.dot(&oa);
-        let r2 = self.radius * self.radius;
-        let a = baba - bard * bard;
-        let b = baba * rdoa - baoa * bard;
-        let c = baba * oaoa - baoa * baoa - r2 * baba;
-        let h = b * b - a * c;
-        if h < 0.0 {
-            return None;
-        }
-        let mut t = f64::INFINITY;
-        if a > 1e-12 {
-            let tb = (-b - h.sqrt()) / a;
-            let y = baoa + tb * bard;
-            if y > 0.0 && y < baba && tb > 1e-6 {
-                t = tb;
-            }
-        }
-        if !t.is_finite() {
-            // Hemispherical caps.
-            for centre in [self.a, self.b] {
-                let oc = origin - centre;
-                let bb = oc.dot(dir);
-                let cc = oc.norm_squared() - r2;
-                let hh = bb * bb - cc;
-                if hh > 0.0 {
-                    let tc = -bb - hh.sqrt();
-                    if tc > 1e-6 && tc < t {
-                        t = tc;
-                    }
-                }
-            }
-        }
-        if !t.is_finite() {
-            return None;
-        }
-        let p = origin + dir * t;
-        let s = ((p - self.a).dot(&ba) / baba).clamp(0.0, 1.0);
-        let normal = (p - (self.a + ba * s)).normalize();
-        Some((t, normal))
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn capsule_hits_body_and_caps() {
-        let cap = Capsule {
-            a: V3::new(0.0, 0.0, 100.0),
-            b: V3::new(50.0, 0.0, 100.0),
-            radius: 10.0,
-        };
-        let (t, n) = cap.intersect(&V3::new(25.0, 0.0, 0.0), &V3::z()).unwrap();
-        assert!((t - 90.0).abs() < 1e-9 && (n + V3::z()).norm() < 1e-9);
-        let (t, _) = cap.intersect(&V3::new(-5.0, 0.0, 0.0), &V3::z()).unwrap();
-        assert!((t - (100.0 - 75f64.sqrt())).abs() < 1e-9);
-        assert!(cap.intersect(&V3::new(-11.0, 0.0, 0.0), &V3::z()).is_none());
-    }
 
     #[test]
     fn fingertips_tremble_at_the_set_amplitude() {
@@ -418,8 +307,46 @@ mod tests {
     fn the_hand_is_seen_from_the_camera() {
         let posed = Scene::new(SceneConfig::trembling_hand()).at(0.0);
         let to_tip = posed.points[0].normalize();
-        let hit = posed.intersect(&V3::zeros(), &to_tip).unwrap();
+        let hit = posed.intersect(&V3::zeros(), &to_tip, (0.0, 0.0)).unwrap();
         assert_eq!(hit.material, Material::Skin);
         assert!((hit.distance_mm - posed.points[0].norm()).abs() < 1.0);
+    }
+
+    #[test]
+    fn culling_changes_no_hit_and_no_shadow() {
+        let config = crate::rig::RigConfig::paper(320, 200).unwrap();
+        let scene = Scene::new(config.scene.clone());
+        let plain = scene.at(0.031);
+        let mut culled = plain.clone();
+        culled.cull(
+            &config.camera,
+            &config.projector,
+            &config.projector_from_camera,
+        );
+        let projector_centre = config.projector_from_camera.inverse().translation_mm;
+        let (mut hand_hits, mut shadows) = (0, 0);
+        for v in 0..200 {
+            for u in 0..320 {
+                let pixel = (f64::from(u), f64::from(v));
+                let dir = config.camera.ray(pixel.0, pixel.1).unwrap();
+                let a = plain.intersect(&V3::zeros(), &dir, pixel).unwrap();
+                let b = culled.intersect(&V3::zeros(), &dir, pixel).unwrap();
+                assert_eq!(a.distance_mm, b.distance_mm, "pixel {pixel:?}");
+                hand_hits += usize::from(a.material == Material::Skin);
+                let point = dir * a.distance_mm;
+                let to_projector = projector_centre - point;
+                let light = to_projector.normalize();
+                let in_projector = config.projector_from_camera.transform(&point);
+                let Some(pp) = config.projector.project(&in_projector) else {
+                    continue;
+                };
+                let origin = point + light * 1e-3;
+                let sa = plain.hand_occludes(&origin, &light, to_projector.norm(), pp);
+                let sb = culled.hand_occludes(&origin, &light, to_projector.norm(), pp);
+                assert_eq!(sa, sb, "shadow at {pixel:?}");
+                shadows += usize::from(sa);
+            }
+        }
+        assert!(hand_hits > 5000 && shadows > 500, "{hand_hits} {shadows}");
     }
 }
