@@ -74,3 +74,40 @@ fn offset_image_is_the_scene_colour() {
     );
     assert!(r > g && g > b && b > 10.0, "colour {r} {g} {b}");
 }
+
+#[test]
+fn saturated_pixels_are_never_valid() {
+    let mut config = still_hand_rig(NoiseModel::default());
+    // Twice the projector power: bright table and skin clip at 255 on part of the fringe.
+    config.projector_gain_gray *= 2.0;
+    let seq = config.default_sequence().unwrap();
+    let rig = tremorscan::rig::VirtualRig::new(config, seq.clone()).unwrap();
+    let mut decoder = tremorscan::decode::SlidingDecoder::new(
+        seq,
+        rig.config.cross_talk,
+        DecodeParams::default(),
+    )
+    .unwrap();
+    let mut clipped = vec![false; rig.width() * rig.height()];
+    let mut frame = rig.blank_frame();
+    for i in 0..3 {
+        rig.render(i, &mut frame, None).unwrap();
+        for (p, px) in frame.data.chunks_exact(3).enumerate() {
+            clipped[p] |= px.contains(&255);
+        }
+        decoder.push(&frame).unwrap();
+    }
+    let out = decoder.output().unwrap();
+    let saturated = tremorscan::decode::invalid::SATURATED;
+    let n_clipped = clipped.iter().filter(|&&c| c).count();
+    assert!(
+        n_clipped > 10_000,
+        "the test needs clipping, got {n_clipped} px"
+    );
+    for (p, &c) in clipped.iter().enumerate() {
+        assert_eq!(out.invalid[p] & saturated != 0, c, "pixel {p}");
+        if c {
+            assert!(out.coordinate_px[p].is_nan());
+        }
+    }
+}

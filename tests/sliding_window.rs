@@ -1,7 +1,10 @@
 //! The sliding window: a moving scene decodes at every frame, stamped at the window centre.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
-use tremorscan::decode::{DecodeError, DecodeParams, SlidingDecoder, WindowOutcome};
+use tremorscan::decode::{
+    decode_window, DecodeError, DecodeOutput, DecodeParams, SlidingDecoder, WindowOutcome,
+    WindowSolver,
+};
 use tremorscan::frame::Frame;
 use tremorscan::rig::evaluate::compare;
 use tremorscan::rig::{GroundTruth, RigConfig, VirtualRig};
@@ -126,4 +129,59 @@ fn bad_frames_are_refused_with_a_clear_error() {
         fresh.push(&g).unwrap_err(),
         DecodeError::NeedsColourFrames(1)
     );
+}
+
+#[test]
+fn decode_window_checks_its_frames_against_the_solver() {
+    let rig = trembling_rig();
+    let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+    let mut out = DecodeOutput::new(rig.width(), rig.height(), &solver);
+    let frames: Vec<Frame> = [0u64, 1, 2]
+        .iter()
+        .map(|&i| {
+            let mut f = rig.blank_frame();
+            rig.render(i, &mut f, None).unwrap();
+            f
+        })
+        .collect();
+    let params = DecodeParams::default();
+    // Frames in the wrong order for this solver.
+    let wrong = [&frames[1], &frames[0], &frames[2]];
+    assert_eq!(
+        decode_window(&solver, &wrong, &params, Some(65), &mut out).unwrap_err(),
+        DecodeError::OrderMismatch {
+            position: 0,
+            expected: 0,
+            got: 1
+        }
+    );
+    // Too few frames.
+    let two = [&frames[0], &frames[1]];
+    assert_eq!(
+        decode_window(&solver, &two, &params, Some(65), &mut out).unwrap_err(),
+        DecodeError::WrongFrameCount {
+            expected: 3,
+            got: 2
+        }
+    );
+    // Empty frames.
+    let empty: Vec<Frame> = (0..3)
+        .map(|i| {
+            let mut f = Frame::new(0, 0, 3).unwrap();
+            f.pattern_index = i;
+            f
+        })
+        .collect();
+    let empty_refs: Vec<&Frame> = empty.iter().collect();
+    assert_eq!(
+        decode_window(&solver, &empty_refs, &params, Some(65), &mut out).unwrap_err(),
+        DecodeError::EmptyFrame {
+            width: 0,
+            height: 0
+        }
+    );
+    // The right order decodes.
+    let right: Vec<&Frame> = frames.iter().collect();
+    decode_window(&solver, &right, &params, Some(65), &mut out).unwrap();
+    assert!(out.valid_count() > out.width * out.height / 2);
 }
