@@ -7,7 +7,8 @@
 //!   of the brighter plus 6 gray levels;
 //! * for colour sequences, their red and blue chromaticity (share of r + g + b) differ by less
 //!   than `edge_chromaticity`: shading does not change chromaticity, skin against most
-//!   backgrounds does. Tested as `|r_a·s_b − r_b·s_a| ≤ t·s_a·s_b`, with no division.
+//!   backgrounds does. Tested as `|r_a·s_b − r_b·s_a| ≤ t·s_a·s_b + 6·max(s_a, s_b)`, with no
+//!   division; the second term allows 6 gray levels of noise on dark pixels.
 //!
 //! Bit [`RIGHT`] links a pixel to its right neighbour, bit [`DOWN`] to the one below. Smoothing
 //! only runs for CPS, so there are always exactly three phase planes.
@@ -101,7 +102,8 @@ fn link_rows<'a>(
             let (red2, blue2) = (rb[x].max(0.0), bb[x].max(0.0));
             let s1 = red1 + ga[x].max(0.0) + blue1;
             let s2 = red2 + gb[x].max(0.0) + blue2;
-            let tol = chroma * s1 * s2;
+            // Chromaticity noise grows as 1/brightness: allow 6 gray levels on top of `chroma`.
+            let tol = chroma * s1 * s2 + 6.0 * s1.max(s2);
             let ok = (sup_a[x] > 0.0)
                 & (sup_b[x] > 0.0)
                 & (wrapped_diff(a0[x], b0[x]) <= max_phase)
