@@ -9,12 +9,15 @@
 //!    neighbourhood (a recursive domain filter that stops at depth and colour edges).
 //! 3. [`unwrap`]: unwrap each wrapped phase with the coarse coordinate (eq. 8), combine the maps
 //!    weighted by amplitude, and mark invalid pixels with the reasons in [`invalid`].
+//! 4. `consistency` (robust unwrap only): mark connected neighbours whose fringe orders
+//!    disagree.
 //!
 //! Rows are processed in bands in parallel with rayon; buffers are laid out row-planar
 //! (`[row][plane][x]`) so that every per-row loop runs over contiguous `f32` and vectorises.
 //! [`window::SlidingDecoder`] drives the stages over a stream of frames.
 
 mod connect;
+mod consistency;
 pub mod fastmath;
 pub mod phasor;
 pub mod smooth;
@@ -41,12 +44,14 @@ pub mod invalid {
     pub const SATURATED: u8 = 2;
     /// The coarse estimate lies near half a period from the fine solution (eq. 8 rounding margin).
     pub const UNWRAP_MARGIN: u8 = 4;
-    /// The unwrapped maps of the different frequencies disagree.
+    /// The unwrapped maps of the different frequencies disagree beyond their predicted noise.
     pub const DISAGREEMENT: u8 = 8;
     /// Too few connected neighbours supported the robust coarse estimate.
     pub const LOW_SUPPORT: u8 = 16;
     /// The coordinate falls outside `[0, x_max)`.
     pub const OUT_OF_RANGE: u8 = 32;
+    /// A connected neighbour's coordinate differs by more than half a fringe period.
+    pub const ORDER_JUMP: u8 = 64;
 }
 
 /// Errors of the decode module.
@@ -127,7 +132,7 @@ impl Default for SmoothingParams {
             edge_phase_rad: 1.0,
             edge_colour_ratio: 0.3,
             edge_chromaticity: 0.03,
-            min_support: 6.0,
+            min_support: 15.0,
         }
     }
 }
@@ -143,8 +148,13 @@ pub struct DecodeParams {
     pub saturation_level: u8,
     /// Largest accepted distance of the eq. 8 argument from its nearest integer (0.5 is the limit).
     pub max_rounding_residual: f32,
-    /// Largest accepted spread between the unwrapped maps of different frequencies, projector px.
-    pub max_disagreement_px: f32,
+    /// Camera noise the disagreement test assumes, gray levels (standard deviation per sample).
+    pub camera_noise_gray: f32,
+    /// Largest accepted χ² (two degrees of freedom) of the unwrapped CPS maps about their
+    /// combination, given `camera_noise_gray`; 25 is exceeded by chance with probability 4·10⁻⁶.
+    pub max_disagreement_chi2: f32,
+    /// Mark connected neighbours whose fringe orders disagree ([`invalid::ORDER_JUMP`]).
+    pub check_order_jumps: bool,
     pub smoothing: SmoothingParams,
 }
 
@@ -155,7 +165,9 @@ impl Default for DecodeParams {
             min_amplitude: 4.0,
             saturation_level: 255,
             max_rounding_residual: 0.3,
-            max_disagreement_px: 1.5,
+            camera_noise_gray: 2.0,
+            max_disagreement_chi2: 25.0,
+            check_order_jumps: true,
             smoothing: SmoothingParams::default(),
         }
     }
@@ -205,6 +217,7 @@ pub struct DecodeOutput {
     pub(crate) unit_im: Vec<f32>,
     pub(crate) support: Vec<f32>,
     pub(crate) connect: Vec<u8>,
+    pub(crate) jump: Vec<u8>,
     pub(crate) smooth_tmp: Vec<f32>,
     pub(crate) vertical_state: Vec<f32>,
     pub(crate) band_scratch: Vec<f32>,
@@ -234,6 +247,7 @@ impl DecodeOutput {
             unit_im: vec![0.0; n],
             support: vec![0.0; n],
             connect: vec![0; n],
+            jump: vec![0; n],
             smooth_tmp: vec![0.0; 4 * BAND_ROWS * width * bands],
             vertical_state: vec![0.0; 3 * width * height.div_ceil(smooth::VERTICAL_BLOCK_ROWS)],
             band_scratch: vec![0.0; bands * band_scratch_len],
@@ -342,6 +356,10 @@ pub fn decode_window(
     }
     let smoothed = Instant::now();
     unwrap::unwrap_and_combine(solver, params, chebyshev_n, out);
+    if params.unwrap == UnwrapMethod::ChebyshevRobust && params.check_order_jumps {
+        let finest = solver.frequency_rad_per_px[0];
+        consistency::flag_order_jumps(out, std::f32::consts::PI / finest);
+    }
     let done = Instant::now();
     out.timings = StageTimings {
         solve_ms: (solved - started).as_secs_f64() * 1e3,

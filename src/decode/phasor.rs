@@ -10,6 +10,10 @@
 //!   `Re w`, `Im w` are exactly the least-squares combinations of the paper's cosine and sine
 //!   Chebyshev equations (eq. 13 and its sine counterpart): the branch-free estimate of method (b).
 //!   Its angle lies in `[0, π)` because `x ∈ [0, x_max)`.
+//! * the agreement of the two terms (`φ0 − 2φ1 + φ2 ≈ 0`) against the noise predicted from the
+//!   amplitudes: pixels where the Chebyshev relation fails (motion inside the window, mixed
+//!   pixels at edges) are marked [`invalid::DISAGREEMENT`] here, before they can pollute the
+//!   averaged unit phasor of their neighbours.
 
 use super::fastmath::phase_0_tau;
 use super::{invalid, DecodeOutput, DecodeParams, WindowSolver, BAND_ROWS};
@@ -88,7 +92,8 @@ fn solve_row(
     let n_u = solver.unknowns;
     let (obs, rest) = scratch.split_at_mut(n_obs * w);
     let (u, rest) = rest.split_at_mut(n_u * w);
-    let saturated = &mut rest[..w];
+    let (saturated, rest) = rest.split_at_mut(w);
+    let inconsistent = &mut rest[..w];
     saturated.fill(0.0);
     let sat_level = params.saturation_level;
 
@@ -163,18 +168,35 @@ fn solve_row(
             amp[x] = (cu[x] * cu[x] + sv[x] * sv[x]).sqrt();
         }
     }
+    inconsistent.fill(0.0);
     if chebyshev && nf == 3 {
         let at = |f: usize, x: usize| {
             let c = solver.cos_unknown(f);
             (u[c * w + x], u[(c + 1) * w + x])
         };
+        let noise2 = params.camera_noise_gray * params.camera_noise_gray;
+        let g = &solver.noise_gain;
+        let (g0, g1, g2) = (g[0] * g[0], 4.0 * g[1] * g[1], g[2] * g[2]);
+        let limit = params.max_disagreement_chi2 * noise2;
         for x in 0..w {
             let (c0, s0) = at(0, x);
             let (c1, s1) = at(1, x);
             let (c2, s2) = at(2, x);
-            // z0·conj(z1) + z1·conj(z2)
-            row.re[x] = c0 * c1 + s0 * s1 + c1 * c2 + s1 * s2;
-            row.im[x] = s0 * c1 - c0 * s1 + s1 * c2 - c1 * s2;
+            // p = z0·conj(z1) and q = z1·conj(z2) both estimate a0·a1·e^{i f1 x} (eq. 13 and its
+            // sine form); the unit phasor is their sum.
+            let (pr, pi) = (c0 * c1 + s0 * s1, s0 * c1 - c0 * s1);
+            let (qr, qi) = (c1 * c2 + s1 * s2, s1 * c2 - c1 * s2);
+            row.re[x] = pr + qr;
+            row.im[x] = pi + qi;
+            // Their angle difference φ0 − 2φ1 + φ2 must vanish up to noise of variance
+            // σ²·(g0²/a0² + 4g1²/a1² + g2²/a2²): the two Chebyshev equations agree. Motion inside
+            // the window and mixed pixels break it. Tested on sin² of the angle, no atan2.
+            let (tr, ti) = (pr * qr + pi * qi, pi * qr - pr * qi);
+            let sin2 = ti * ti / (tr * tr + ti * ti);
+            let (a0, a1, a2) = (c0 * c0 + s0 * s0, c1 * c1 + s1 * s1, c2 * c2 + s2 * s2);
+            let var_over_noise = g0 / a0 + g1 / a1 + g2 / a2;
+            let bad = (tr < 0.0) | (sin2 > limit * var_over_noise);
+            inconsistent[x] = f32::from(u8::from(bad));
         }
     }
     let min_amplitude = params.min_amplitude;
@@ -186,7 +208,10 @@ fn solve_row(
         // A NaN amplitude counts as low.
         let low = u8::from(min_amp.is_nan() | (min_amp < min_amplitude));
         let sat = u8::from(saturated[x] > 0.0);
-        let reason = (low * invalid::LOW_AMPLITUDE) | (sat * invalid::SATURATED);
+        let odd = u8::from(inconsistent[x] > 0.0);
+        let reason = (low * invalid::LOW_AMPLITUDE)
+            | (sat * invalid::SATURATED)
+            | (odd * invalid::DISAGREEMENT);
         row.flags[x] = reason;
         let keep = f32::from(u8::from(reason == 0));
         row.support[x] = keep;

@@ -38,6 +38,9 @@ pub struct WindowSolver {
     pub unknowns: usize,
     /// Ratio of smallest to largest singular value of `M`.
     pub conditioning: f64,
+    /// Per frequency slot: RMS norm of the `U` and `V` rows of `M⁺`, i.e. the standard deviation
+    /// of each unknown per gray level of independent camera noise.
+    pub noise_gain: Vec<f32>,
 }
 
 impl WindowSolver {
@@ -120,7 +123,16 @@ impl WindowSolver {
                 pinv_f32.push(pinv[(r, c)] as f32);
             }
         }
+        let noise_gain = (0..frequencies.len())
+            .map(|f| {
+                let row_norm2 =
+                    |r: usize| -> f64 { (0..observations).map(|c| pinv[(r, c)].powi(2)).sum() };
+                let u = channels + 2 * f;
+                ((row_norm2(u) + row_norm2(u + 1)) / 2.0).sqrt() as f32
+            })
+            .collect();
         Ok(Self {
+            noise_gain,
             order: order.to_vec(),
             channels,
             frequency_rad_per_px: frequencies
@@ -156,6 +168,20 @@ mod tests {
         assert!(s.conditioning > 0.05, "{}", s.conditioning);
         // Any rotation of the three shifts decodes.
         assert!(WindowSolver::new(&seq, &[2, 0, 1], &CrossTalk::paper()).is_ok());
+    }
+
+    #[test]
+    fn noise_gain_of_the_three_step_solve() {
+        // Without cross-talk, U = (2/3)·Σ c_k cos θ_k: the row norm² is (4/9)·(3/2) = 2/3.
+        let seq = cps_rgb(65, 912.0, Axis::Columns, 6).unwrap();
+        let s = WindowSolver::new(&seq, &[0, 1, 2], &CrossTalk::identity()).unwrap();
+        for g in &s.noise_gain {
+            assert!((g - (2.0f32 / 3.0).sqrt()).abs() < 1e-5, "{g}");
+        }
+        // Unmixing the paper's cross-talk amplifies the noise, most on the weakest (blue) channel.
+        let s = WindowSolver::new(&seq, &[0, 1, 2], &CrossTalk::paper()).unwrap();
+        assert!(s.noise_gain.iter().all(|&g| g > 0.9));
+        assert!(s.noise_gain[0] > s.noise_gain[1], "{:?}", s.noise_gain);
     }
 
     #[test]

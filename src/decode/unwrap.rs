@@ -9,11 +9,16 @@
 //! * Each wrapped phase `φ_i` unwraps as `k_i = round((x_c·f_i − φ_i)/2π)`,
 //!   `x_i = (2π·k_i + φ_i)/f_i`. The distance of the rounded argument from its integer is the
 //!   rounding margin; near 0.5 the fringe order is a coin toss and the pixel is marked invalid.
-//! * CPS maps are combined with weights `amplitude²`: the phase noise of a frequency is inversely
-//!   proportional to its amplitude, so this is the inverse-variance weighting.
-//! * The three CPS periods differ by only about 1 %, so a wrong fringe order moves all three maps
-//!   almost together and the disagreement test catches little; the rounding margin and the
-//!   support test carry most of the protection. A wrong depth is worse than a missing one.
+//! * CPS maps are combined by inverse variance, weighted by amplitude: map i has noise
+//!   `σ_i = σ_cam·g_i / (a_i·f_i)`, with `a_i` its amplitude and `g_i` the noise gain of the
+//!   solver's rows for that frequency (cross-talk unmixing amplifies some channels), so its weight
+//!   is `(a_i·f_i / g_i)²`.
+//! * Disagreement between the maps is tested against that noise: `χ² = Σ (x_i − x̄)² / σ_i²`
+//!   with two degrees of freedom. The three CPS periods differ by only about 1 %, so a wrong
+//!   fringe order moves the maps apart by only 0.4–0.9 px: invisible on dark pixels, but many σ on
+//!   well-lit ones, and motion inside the window, which corrupts the frequencies differently,
+//!   shows up the same way. The rounding margin, support and order-jump tests carry the rest.
+//!   A wrong depth is worse than a missing one.
 
 use super::smooth::unit_angle;
 use super::{invalid, DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
@@ -40,6 +45,7 @@ pub(crate) fn unwrap_and_combine(
         x_max,
         params: *params,
         f: f.clone(),
+        gain: solver.noise_gain.clone(),
     };
     out.coordinate_px
         .par_chunks_mut(w)
@@ -79,6 +85,7 @@ struct Consts {
     x_max: f32,
     params: DecodeParams,
     f: Vec<f32>,
+    gain: Vec<f32>,
 }
 
 struct Row<'a> {
@@ -125,28 +132,34 @@ fn chebyshev_row(c: &Consts, row: Row<'_>) {
             row.coarse[x] = paper_coarse(ph0[x], ph1[x], ph2[x]) * inv_f1;
         }
     }
+    // Inverse-variance weights are (a·f/g)², with g the solver's noise gain of the slot.
+    let (k0, k1, k2) = (f0 / c.gain[0], fa / c.gain[1], fb / c.gain[2]);
+    let (k0, k1, k2) = (k0 * k0, k1 * k1, k2 * k2);
+    let inv_noise2 = 1.0 / (p.camera_noise_gray * p.camera_noise_gray);
     for x in 0..w {
         let mut reason = row.flags[x];
         let xc = row.coarse[x];
         let (x0, r0) = unwrap_one(xc, ph0[x], f0);
         let (x1, r1) = unwrap_one(xc, ph1[x], fa);
         let (x2, r2) = unwrap_one(xc, ph2[x], fb);
-        let (w0, w1, w2) = (am0[x] * am0[x], am1[x] * am1[x], am2[x] * am2[x]);
+        let (w0, w1, w2) = (
+            k0 * am0[x] * am0[x],
+            k1 * am1[x] * am1[x],
+            k2 * am2[x] * am2[x],
+        );
         let total = w0 + w1 + w2;
+        // A zero total only happens on pixels already flagged for low amplitude.
         let combined = if total > 0.0 {
             (x0 * w0 + x1 * w1 + x2 * w2) / total
         } else {
             x0
         };
-        // (A zero total only happens on pixels already flagged for low amplitude.)
         if r0.max(r1).max(r2) > p.max_rounding_residual {
             reason |= invalid::UNWRAP_MARGIN;
         }
-        let spread = (x0 - combined)
-            .abs()
-            .max((x1 - combined).abs())
-            .max((x2 - combined).abs());
-        if spread > p.max_disagreement_px {
+        let (d0, d1, d2) = (x0 - combined, x1 - combined, x2 - combined);
+        let chi2 = (w0 * d0 * d0 + w1 * d1 * d1 + w2 * d2 * d2) * inv_noise2;
+        if chi2 > p.max_disagreement_chi2 {
             reason |= invalid::DISAGREEMENT;
         }
         if !(-0.5..c.x_max).contains(&combined) {

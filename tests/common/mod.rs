@@ -51,7 +51,8 @@ pub fn decode_once(
 /// Decode parameters with every validity check after the signal checks switched off.
 pub fn checks_off(mut params: DecodeParams) -> DecodeParams {
     params.max_rounding_residual = 0.5;
-    params.max_disagreement_px = f32::INFINITY;
+    params.max_disagreement_chi2 = f32::INFINITY;
     params.smoothing.min_support = 0.0;
+    params.check_order_jumps = false;
     params
 }
