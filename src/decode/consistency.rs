@@ -22,38 +22,61 @@ pub(crate) fn flag_order_jumps(out: &mut DecodeOutput, half_period_px: f32) {
         .for_each(|(y, jump)| {
             let row = &coord[y * w..(y + 1) * w];
             let links = &connect[y * w..(y + 1) * w];
-            for x in 0..w {
-                let c = row[x];
-                let far = |other: f32| (other - c).abs() > half_period_px;
-                let mut bad = false;
-                if x + 1 < w && links[x] & RIGHT != 0 {
-                    bad |= far(row[x + 1]);
-                }
-                if x > 0 && links[x - 1] & RIGHT != 0 {
-                    bad |= far(row[x - 1]);
-                }
-                if y + 1 < h && links[x] & DOWN != 0 {
-                    bad |= far(coord[(y + 1) * w + x]);
-                }
-                if y > 0 && connect[(y - 1) * w + x] & DOWN != 0 {
-                    bad |= far(coord[(y - 1) * w + x]);
-                }
-                // NaN on either side compares false: only valid pairs count.
-                jump[x] = u8::from(bad);
+            jump.fill(0);
+            // Right and left neighbours share the RIGHT link of the left pixel of each pair.
+            pair_jumps(
+                &row[..w - 1],
+                &row[1..],
+                &links[..w - 1],
+                RIGHT,
+                half_period_px,
+                &mut jump[..w - 1],
+            );
+            pair_jumps(
+                &row[1..],
+                &row[..w - 1],
+                &links[..w - 1],
+                RIGHT,
+                half_period_px,
+                &mut jump[1..],
+            );
+            if y + 1 < h {
+                let below = &coord[(y + 1) * w..(y + 2) * w];
+                pair_jumps(row, below, links, DOWN, half_period_px, jump);
+            }
+            if y > 0 {
+                let above = &coord[(y - 1) * w..y * w];
+                let above_links = &connect[(y - 1) * w..y * w];
+                pair_jumps(row, above, above_links, DOWN, half_period_px, jump);
             }
         });
     out.invalid
         .par_chunks_mut(w)
         .zip(out.coordinate_px.par_chunks_mut(w))
         .zip(out.jump.par_chunks(w))
-        .for_each(|((flags, coord), jump)| {
-            for x in 0..w {
-                if jump[x] != 0 {
-                    flags[x] |= invalid::ORDER_JUMP;
-                    coord[x] = f32::NAN;
-                }
-            }
-        });
+        .for_each(|((flags, coord), jump)| apply_jumps(flags, coord, jump));
+}
+
+/// `jump[x] |= 1` where `links[x]` has `bit` and `here[x]`, `there[x]` are both valid and more
+/// than `limit` apart (NaN compares false, so invalid pixels never count).
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+fn pair_jumps(here: &[f32], there: &[f32], links: &[u8], bit: u8, limit: f32, jump: &mut [u8]) {
+    for x in 0..jump.len() {
+        let linked = links[x] & bit != 0;
+        let far = (here[x] - there[x]).abs() > limit;
+        jump[x] |= u8::from(linked & far);
+    }
+}
+
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+fn apply_jumps(flags: &mut [u8], coord: &mut [f32], jump: &[u8]) {
+    for x in 0..flags.len() {
+        let j = jump[x];
+        flags[x] |= j * invalid::ORDER_JUMP;
+        if j != 0 {
+            coord[x] = f32::NAN;
+        }
+    }
 }
 
 #[cfg(test)]

@@ -248,7 +248,7 @@ impl DecodeOutput {
             support: vec![0.0; n],
             connect: vec![0; n],
             jump: vec![0; n],
-            smooth_tmp: vec![0.0; 4 * BAND_ROWS * width * bands],
+            smooth_tmp: vec![0.0; 3 * n],
             vertical_state: vec![0.0; 3 * width * height.div_ceil(smooth::VERTICAL_BLOCK_ROWS)],
             band_scratch: vec![0.0; bands * band_scratch_len],
             band_scratch_len,

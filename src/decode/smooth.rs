@@ -27,26 +27,32 @@ pub(crate) fn smooth_unit_phasor(out: &mut DecodeOutput, params: &SmoothingParam
 }
 
 /// Horizontal recursion of one row: `F[x] = v[x] + g[x−1]·F[x−1]`, `B[x] = v[x] + g[x]·B[x+1]`,
-/// result `F + B − v`, for the three planes at once (three independent chains hide latency).
+/// result `F + B − v` written to `dst`, for the three planes at once (three independent chains
+/// hide the latency of the recursion).
 #[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
-fn horizontal_row(planes: [&mut [f32]; 3], link: &[u8], decay: f32, scratch: &mut [f32]) {
+fn horizontal_row(
+    src: [&[f32]; 3],
+    dst: [&mut [f32]; 3],
+    link: &[u8],
+    decay: f32,
+    gain: &mut [f32],
+) {
     let w = link.len();
-    let (gain, rest) = scratch.split_at_mut(w);
-    let (v0, rest) = rest.split_at_mut(w);
-    let (v1, v2) = rest.split_at_mut(w);
-    let v2 = &mut v2[..w];
+    let gain = &mut gain[..w];
     for x in 0..w {
         gain[x] = if link[x] & RIGHT != 0 { decay } else { 0.0 };
     }
-    let [p0, p1, p2] = planes;
-    v0.copy_from_slice(p0);
-    v1.copy_from_slice(p1);
-    v2.copy_from_slice(p2);
-    for x in 1..w {
-        let g = gain[x - 1];
-        p0[x] += g * p0[x - 1];
-        p1[x] += g * p1[x - 1];
-        p2[x] += g * p2[x - 1];
+    let [v0, v1, v2] = src;
+    let [p0, p1, p2] = dst;
+    let (mut f0, mut f1, mut f2) = (0.0f32, 0.0f32, 0.0f32);
+    for x in 0..w {
+        let g = if x > 0 { gain[x - 1] } else { 0.0 };
+        f0 = v0[x] + g * f0;
+        f1 = v1[x] + g * f1;
+        f2 = v2[x] + g * f2;
+        p0[x] = f0;
+        p1[x] = f1;
+        p2[x] = f2;
     }
     let (mut b0, mut b1, mut b2) = (0.0f32, 0.0f32, 0.0f32);
     for x in (0..w).rev() {
@@ -60,29 +66,35 @@ fn horizontal_row(planes: [&mut [f32]; 3], link: &[u8], decay: f32, scratch: &mu
     }
 }
 
+/// Rows of the unit phasor and support → `smooth_tmp` (three planes), the vertical pass's input.
 fn horizontal_pass(out: &mut DecodeOutput, decay: f32) {
     let w = out.width;
+    let n = w * out.height;
     let band_px = BAND_ROWS * w;
-    // `smooth_tmp` holds 4·band_px per band (see `DecodeOutput::new`), so every zipped iterator
-    // below yields exactly one chunk per band.
+    let (t0, rest) = out.smooth_tmp.split_at_mut(n);
+    let (t1, t2) = rest.split_at_mut(n);
     out.unit_re
-        .par_chunks_mut(band_px)
-        .zip(out.unit_im.par_chunks_mut(band_px))
-        .zip(out.support.par_chunks_mut(band_px))
+        .par_chunks(band_px)
+        .zip(out.unit_im.par_chunks(band_px))
+        .zip(out.support.par_chunks(band_px))
         .zip(out.connect.par_chunks(band_px))
-        .zip(out.smooth_tmp.par_chunks_mut(4 * band_px))
-        .for_each(|((((re, im), support), link), scratch)| {
+        .zip(t0.par_chunks_mut(band_px))
+        .zip(t1.par_chunks_mut(band_px))
+        .zip(t2[..n].par_chunks_mut(band_px))
+        .zip(out.band_scratch.par_chunks_mut(out.band_scratch_len))
+        .for_each(|(((((((re, im), support), link), d0), d1), d2), gain)| {
             for r in 0..link.len() / w {
                 let span = r * w..(r + 1) * w;
                 horizontal_row(
+                    [&re[span.clone()], &im[span.clone()], &support[span.clone()]],
                     [
-                        &mut re[span.clone()],
-                        &mut im[span.clone()],
-                        &mut support[span.clone()],
+                        &mut d0[span.clone()],
+                        &mut d1[span.clone()],
+                        &mut d2[span.clone()],
                     ],
                     &link[span],
                     decay,
-                    &mut scratch[..4 * w],
+                    gain,
                 );
             }
         });
@@ -100,12 +112,8 @@ fn vertical_pass(out: &mut DecodeOutput, decay: f32) {
     let w = out.width;
     let h = out.height;
     let n = w * h;
-    // The input of this pass, kept unmodified while the blocks write their rows.
-    let orig = &mut out.smooth_tmp[..3 * n];
-    orig[..n].copy_from_slice(&out.unit_re);
-    orig[n..2 * n].copy_from_slice(&out.unit_im);
-    orig[2 * n..].copy_from_slice(&out.support);
-    let orig: &[f32] = orig;
+    // The horizontal pass's output, read while the blocks write their rows of the final planes.
+    let orig: &[f32] = &out.smooth_tmp[..3 * n];
     let connect = &out.connect;
     let block_px = VERTICAL_BLOCK_ROWS * w;
     out.unit_re
