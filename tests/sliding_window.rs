@@ -185,3 +185,40 @@ fn decode_window_checks_its_frames_against_the_solver() {
     decode_window(&solver, &right, &params, Some(65), &mut out).unwrap();
     assert!(out.valid_count() > out.width * out.height / 2);
 }
+
+#[test]
+fn after_a_reset_the_stream_may_change_size() {
+    let rig = trembling_rig();
+    let small = {
+        let config = RigConfig::paper(320, 200).unwrap();
+        let seq = config.default_sequence().unwrap();
+        VirtualRig::new(config, seq).unwrap()
+    };
+    let mut decoder = SlidingDecoder::new(
+        rig.sequence.clone(),
+        rig.config.cross_talk,
+        DecodeParams::default(),
+    )
+    .unwrap();
+    let mut frame = rig.blank_frame();
+    for i in 0..3 {
+        rig.render(i, &mut frame, None).unwrap();
+        decoder.push(&frame).unwrap();
+    }
+    decoder.reset();
+    let mut frame = small.blank_frame();
+    let mut decoded = None;
+    for i in 0..3 {
+        small.render(i, &mut frame, None).unwrap();
+        match decoder.push(&frame).unwrap() {
+            WindowOutcome::Filling { .. } if i < 2 => {}
+            WindowOutcome::Decoded(out) if i == 2 => {
+                decoded = Some((out.width, out.height, out.valid_count()));
+            }
+            other => panic!("frame {i}: {other:?}"),
+        }
+    }
+    let (w, h, valid) = decoded.unwrap();
+    assert_eq!((w, h), (320, 200));
+    assert!(valid > 320 * 200 * 9 / 10, "{valid}");
+}

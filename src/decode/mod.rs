@@ -1,6 +1,6 @@
 //! Decoding: from a window of camera frames to projector coordinate, amplitude, colour, validity.
 //!
-//! The work is split into three plain stages over a preallocated [`DecodeOutput`]:
+//! The work is split into plain stages over a preallocated [`DecodeOutput`]:
 //!
 //! 1. [`phasor`]: per pixel, solve the window's linear system (paper eqs. 4 / 22) with the
 //!    precomputed pseudo-inverse of [`solver::WindowSolver`]; write wrapped phases, amplitudes, the
@@ -30,6 +30,7 @@ pub use window::{SlidingDecoder, WindowOutcome};
 
 use crate::frame::{Frame, FrameError};
 use crate::pattern::PatternError;
+use std::borrow::Borrow;
 use std::time::Instant;
 
 /// Rows per parallel band.
@@ -291,10 +292,11 @@ impl DecodeOutput {
     }
 }
 
-/// Decodes one window of `frames` (oldest first, matching `solver.order`) into `out`.
-pub fn decode_window(
+/// Decodes one window of `frames` (oldest first, matching `solver.order`) into `out`. `frames`
+/// may hold the frames themselves or references to them.
+pub fn decode_window<F: Borrow<Frame> + Sync>(
     solver: &WindowSolver,
-    frames: &[&Frame],
+    frames: &[F],
     params: &DecodeParams,
     chebyshev_n: Option<u32>,
     out: &mut DecodeOutput,
@@ -307,6 +309,7 @@ pub fn decode_window(
     }
     if let Some((k, frame)) = frames
         .iter()
+        .map(Borrow::borrow)
         .enumerate()
         .find(|(k, f)| f.pattern_index != solver.order[*k])
     {
@@ -316,7 +319,7 @@ pub fn decode_window(
             got: frame.pattern_index,
         });
     }
-    let first = frames[0];
+    let first: &Frame = frames[0].borrow();
     let (width, height) = (first.width, first.height);
     if width == 0 || height == 0 {
         return Err(DecodeError::EmptyFrame { width, height });
@@ -325,7 +328,7 @@ pub fn decode_window(
         return Err(DecodeError::NeedsColourFrames(first.channels));
     }
     for frame in frames {
-        frame.check_shape(width, height, first.channels)?;
+        frame.borrow().check_shape(width, height, first.channels)?;
     }
     match params.unwrap {
         UnwrapMethod::ChebyshevPerPixel | UnwrapMethod::ChebyshevRobust => {
@@ -346,7 +349,7 @@ pub fn decode_window(
     if !out.fits(width, height, solver) {
         *out = DecodeOutput::new(width, height, solver);
     }
-    out.time_s = frames.iter().map(|f| f.time_s).sum::<f64>() / frames.len() as f64;
+    out.time_s = frames.iter().map(|f| f.borrow().time_s).sum::<f64>() / frames.len() as f64;
     let chebyshev = params.unwrap != UnwrapMethod::Temporal;
     let started = Instant::now();
     phasor::solve_phasors(solver, frames, params, chebyshev, out);

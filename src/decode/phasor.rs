@@ -19,11 +19,12 @@ use super::fastmath::phase_0_tau;
 use super::{invalid, DecodeOutput, DecodeParams, WindowSolver, BAND_ROWS};
 use crate::frame::Frame;
 use rayon::prelude::*;
+use std::borrow::Borrow;
 
 /// Runs stage 1 over the whole image.
-pub(crate) fn solve_phasors(
+pub(crate) fn solve_phasors<F: Borrow<Frame> + Sync>(
     solver: &WindowSolver,
-    frames: &[&Frame],
+    frames: &[F],
     params: &DecodeParams,
     chebyshev: bool,
     out: &mut DecodeOutput,
@@ -78,9 +79,9 @@ struct RowOut<'a> {
     reason = "a stage kernel over one row's typed buffers"
 )]
 #[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
-fn solve_row(
+fn solve_row<F: Borrow<Frame>>(
     solver: &WindowSolver,
-    frames: &[&Frame],
+    frames: &[F],
     params: &DecodeParams,
     chebyshev: bool,
     y: usize,
@@ -99,7 +100,7 @@ fn solve_row(
 
     // Unpack observations into planes: plane k·channels + j holds frame k, camera channel j.
     // Each loop reads one interleaved row with fixed stride so it vectorises.
-    for (k, frame) in frames.iter().enumerate() {
+    for (k, frame) in frames.iter().map(Borrow::borrow).enumerate() {
         let src_channels = frame.channels;
         let src = &frame.data[y * w * src_channels..(y + 1) * w * src_channels];
         if src_channels == 1 {

@@ -1,11 +1,12 @@
 //! The sliding-window decoder: a new result at every frame (paper §5.5, Figure 9).
 //!
 //! The decoder keeps the last `L` frames (`L` = sequence length: 3 for CPS-RGB) in a ring of
-//! preallocated buffers. Each pushed frame replaces the oldest; once the ring is full the window
+//! reused buffers. Each pushed frame replaces the oldest; once the ring is full the window
 //! (oldest first) is decoded if its pattern indices form a solvable system, so frame t reuses
 //! frames t−1 and t−2. A dropped frame simply produces a different order (for example 2, 0, 1); a
 //! window that repeats a shift is reported as [`WindowOutcome::Unsolvable`] and counted. Solvers
-//! are cached per window order: the pseudo-inverse is computed once per order, never per pixel.
+//! are cached per window order (unsolvable orders too): the pseudo-inverse is computed once per
+//! order, never per pixel or per frame.
 //! A result is stamped at the mean of its frames' times: in a 5 Hz, 2 mm tremor a finger moves
 //! about 0.5 mm per frame, so a stamp one frame off would be a measurable error.
 
@@ -13,7 +14,7 @@ use super::{decode_window, DecodeError, DecodeOutput, DecodeParams, WindowSolver
 use crate::color::CrossTalk;
 use crate::frame::Frame;
 use crate::pattern::PatternSequence;
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::sync::Arc;
 
 /// What a pushed frame produced.
@@ -34,11 +35,12 @@ pub struct SlidingDecoder {
     cross_talk: CrossTalk,
     params: DecodeParams,
     chebyshev_n: Option<u32>,
-    ring: Vec<Frame>,
-    /// Index in `ring` of the next slot to overwrite (the oldest frame once full).
-    next: usize,
+    /// The last frames, oldest first; buffers are recycled from the front to the back.
+    ring: VecDeque<Frame>,
+    /// Frames pushed since creation or the last reset, at most the window length.
     filled: usize,
-    solvers: HashMap<Vec<usize>, Arc<WindowSolver>>,
+    /// Solvers per window order; `None` for orders that cannot be solved.
+    solvers: HashMap<Vec<usize>, Option<Arc<WindowSolver>>>,
     output: Option<DecodeOutput>,
     order: Vec<usize>,
     /// Windows that could not be solved since creation.
@@ -61,8 +63,7 @@ impl SlidingDecoder {
             cross_talk,
             params,
             chebyshev_n,
-            ring: Vec::with_capacity(len),
-            next: 0,
+            ring: VecDeque::with_capacity(len),
             filled: 0,
             solvers: HashMap::new(),
             output: None,
@@ -83,7 +84,6 @@ impl SlidingDecoder {
     /// Forgets the frames seen so far (after a seek or a stream restart).
     pub fn reset(&mut self) {
         self.filled = 0;
-        self.next = 0;
     }
 
     /// The last decoded result, if any.
@@ -100,24 +100,23 @@ impl SlidingDecoder {
                 len,
             });
         }
-        if let Some(first) = self.ring.first() {
-            if self.filled > 0 {
-                frame.check_shape(first.width, first.height, first.channels)?;
+        if self.filled > 0 {
+            if let Some(newest) = self.ring.back() {
+                frame.check_shape(newest.width, newest.height, newest.channels)?;
             }
         }
         if self.ring.len() < len {
-            self.ring.push(frame.clone());
-        } else {
-            // Reuse the slot's allocation.
-            let slot = &mut self.ring[self.next];
+            self.ring.push_back(frame.clone());
+        } else if let Some(mut slot) = self.ring.pop_front() {
+            // Reuse the oldest frame's allocation.
             slot.data.clone_from(&frame.data);
             slot.width = frame.width;
             slot.height = frame.height;
             slot.channels = frame.channels;
             slot.time_s = frame.time_s;
             slot.pattern_index = frame.pattern_index;
+            self.ring.push_back(slot);
         }
-        self.next = (self.next + 1) % len;
         self.filled = (self.filled + 1).min(len);
         if self.filled < len {
             return Ok(WindowOutcome::Filling {
@@ -126,19 +125,24 @@ impl SlidingDecoder {
             });
         }
         self.order.clear();
-        for i in 0..len {
-            self.order
-                .push(self.ring[(self.next + i) % len].pattern_index);
-        }
+        self.order.extend(self.ring.iter().map(|f| f.pattern_index));
         let solver = match self.solvers.get(&self.order) {
-            Some(s) => Arc::clone(s),
+            Some(Some(s)) => Arc::clone(s),
+            Some(None) => {
+                self.unsolvable_windows += 1;
+                return Ok(WindowOutcome::Unsolvable {
+                    order: self.order.clone(),
+                });
+            }
             None => match WindowSolver::new(&self.sequence, &self.order, &self.cross_talk) {
                 Ok(s) => {
                     let s = Arc::new(s);
-                    self.solvers.insert(self.order.clone(), Arc::clone(&s));
+                    self.solvers
+                        .insert(self.order.clone(), Some(Arc::clone(&s)));
                     s
                 }
                 Err(DecodeError::Underdetermined { .. }) => {
+                    self.solvers.insert(self.order.clone(), None);
                     self.unsolvable_windows += 1;
                     return Ok(WindowOutcome::Unsolvable {
                         order: self.order.clone(),
@@ -147,14 +151,13 @@ impl SlidingDecoder {
                 Err(e) => return Err(e),
             },
         };
-        let frames: Vec<&Frame> = (0..len)
-            .map(|i| &self.ring[(self.next + i) % len])
-            .collect();
+        // Oldest first, contiguous: no per-frame allocation.
+        let frames: &[Frame] = self.ring.make_contiguous();
         let (w, h) = (frames[0].width, frames[0].height);
         let out = self
             .output
             .get_or_insert_with(|| DecodeOutput::new(w, h, &solver));
-        decode_window(&solver, &frames, &self.params, self.chebyshev_n, out)?;
+        decode_window(&solver, frames, &self.params, self.chebyshev_n, out)?;
         self.decoded_windows += 1;
         Ok(WindowOutcome::Decoded(out))
     }
