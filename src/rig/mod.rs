@@ -149,6 +149,15 @@ impl VirtualRig {
             return Err(RigError::BadFrameRate(config.fps));
         }
         let cam = config.camera;
+        for lens in [&config.camera, &config.projector] {
+            if lens.width == 0 || lens.height == 0 {
+                return Err(GeometryError::EmptySize {
+                    width: lens.width,
+                    height: lens.height,
+                }
+                .into());
+            }
+        }
         let rays = (0..cam.width * cam.height)
             .into_par_iter()
             .map(|i| {

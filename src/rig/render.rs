@@ -230,5 +230,8 @@ mod tests {
         assert!(rig
             .render(0, &mut crate::frame::Frame::new(3, 3, 3).unwrap(), None)
             .is_err());
+        let mut empty = rig.config.clone();
+        empty.camera.width = 0;
+        assert!(VirtualRig::new(empty, rig.sequence.clone()).is_err());
     }
 }
