@@ -72,6 +72,7 @@ fn a_dropped_frame_is_reported_and_decoding_resumes() {
         outcomes.push(match decoder.push(&frame).unwrap() {
             WindowOutcome::Filling { .. } => "filling",
             WindowOutcome::Unsolvable { .. } => "unsolvable",
+            WindowOutcome::TooSpread { .. } => "spread",
             WindowOutcome::Decoded(_) => "decoded",
         });
     }
@@ -88,6 +89,38 @@ fn a_dropped_frame_is_reported_and_decoding_resumes() {
         ]
     );
     assert_eq!(decoder.unsolvable_windows, 2);
+}
+
+#[test]
+fn a_window_spanning_a_whole_dropped_cycle_is_refused() {
+    let rig = trembling_rig();
+    // Two frame periods plus jitter allowance: a window without drops spans exactly two.
+    let max_span_s = 2.5 / rig.config.fps;
+    let mut decoder = SlidingDecoder::new(
+        rig.sequence.clone(),
+        rig.config.cross_talk,
+        DecodeParams::default(),
+    )
+    .unwrap()
+    .with_max_span(max_span_s);
+    let mut frame = rig.blank_frame();
+    let mut outcomes = Vec::new();
+    // Frames 3, 4 and 5 (one whole cycle) are lost: (1, 2, 0) from frames 1, 2, 6 is solvable
+    // but 5 frame periods long.
+    for i in [0u64, 1, 2, 6, 7, 8] {
+        rig.render(i, &mut frame, None).unwrap();
+        outcomes.push(match decoder.push(&frame).unwrap() {
+            WindowOutcome::Filling { .. } => "filling",
+            WindowOutcome::Unsolvable { .. } => "unsolvable",
+            WindowOutcome::TooSpread { .. } => "spread",
+            WindowOutcome::Decoded(_) => "decoded",
+        });
+    }
+    assert_eq!(
+        outcomes,
+        ["filling", "filling", "decoded", "spread", "spread", "decoded"]
+    );
+    assert_eq!(decoder.spread_windows, 2);
 }
 
 #[test]

@@ -24,6 +24,9 @@ pub enum WindowOutcome<'a> {
     Filling { have: usize, need: usize },
     /// The window's pattern order repeats a shift (frames were dropped); nothing decoded.
     Unsolvable { order: Vec<usize> },
+    /// The window's frames span more time than allowed (frames were dropped between them);
+    /// nothing decoded, since the scene may have moved.
+    TooSpread { span_s: f64, max_span_s: f64 },
     /// A new decoded result.
     Decoded(&'a DecodeOutput),
 }
@@ -43,8 +46,11 @@ pub struct SlidingDecoder {
     solvers: HashMap<Vec<usize>, Option<Arc<WindowSolver>>>,
     output: Option<DecodeOutput>,
     order: Vec<usize>,
+    max_span_s: Option<f64>,
     /// Windows that could not be solved since creation.
     pub unsolvable_windows: u64,
+    /// Windows refused because their frames were too far apart in time, since creation.
+    pub spread_windows: u64,
     /// Windows decoded since creation.
     pub decoded_windows: u64,
 }
@@ -68,9 +74,18 @@ impl SlidingDecoder {
             solvers: HashMap::new(),
             output: None,
             order: Vec::with_capacity(len),
+            max_span_s: None,
             unsolvable_windows: 0,
+            spread_windows: 0,
             decoded_windows: 0,
         })
+    }
+
+    /// Refuses windows whose first and last frames are more than `max_span_s` apart. For a
+    /// stream at `fps` with no drops the span is `(L − 1)/fps`; a little more tolerates jitter.
+    pub fn with_max_span(mut self, max_span_s: f64) -> Self {
+        self.max_span_s = Some(max_span_s);
+        self
     }
 
     pub fn window_len(&self) -> usize {
@@ -123,6 +138,15 @@ impl SlidingDecoder {
                 have: self.filled,
                 need: len,
             });
+        }
+        if let (Some(max_span_s), Some(first), Some(last)) =
+            (self.max_span_s, self.ring.front(), self.ring.back())
+        {
+            let span_s = last.time_s - first.time_s;
+            if span_s > max_span_s {
+                self.spread_windows += 1;
+                return Ok(WindowOutcome::TooSpread { span_s, max_span_s });
+            }
         }
         self.order.clear();
         self.order.extend(self.ring.iter().map(|f| f.pattern_index));

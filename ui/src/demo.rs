@@ -41,8 +41,10 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         .context("building the CPS-RGB sequence")?;
     let half_period = seq.period_px(65) / 2.0;
     let rig = VirtualRig::new(config, seq.clone()).context("building the virtual rig")?;
+    // A window without drops spans two frame periods; allow half a period of jitter.
     let mut decoder = SlidingDecoder::new(seq, rig.config.cross_talk, DecodeParams::default())
-        .context("creating the decoder")?;
+        .context("creating the decoder")?
+        .with_max_span(2.5 / rig.config.fps);
     println!(
         "tremorscan demo: virtual rig {}×{} at {} FPS, CPS-RGB n = 65 on 912 projector columns",
         rig.width(),
@@ -91,10 +93,11 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         }
     }
     println!(
-        "{} frames, {} windows decoded, {} unsolvable; mean render {:.2} ms, mean decode {:.2} ms",
+        "{} frames, {} windows decoded, {} unsolvable, {} too spread in time; mean render {:.2} ms, mean decode {:.2} ms",
         args.frames,
         decoded,
         decoder.unsolvable_windows,
+        decoder.spread_windows,
         render_total / args.frames.max(1) as f64,
         decode_total / decoded.max(1) as f64
     );
