@@ -9,6 +9,24 @@ use tremorscan::frame::Frame;
 use tremorscan::rig::evaluate::compare;
 use tremorscan::rig::{GroundTruth, RigConfig, VirtualRig};
 
+fn label(outcome: &WindowOutcome<'_>) -> &'static str {
+    match outcome {
+        WindowOutcome::Filling { .. } => "filling",
+        WindowOutcome::Unsolvable { .. } => "unsolvable",
+        WindowOutcome::TooSpread { .. } => "spread",
+        WindowOutcome::Decoded(_) => "decoded",
+    }
+}
+
+fn new_decoder(rig: &VirtualRig) -> SlidingDecoder {
+    SlidingDecoder::new(
+        rig.sequence.clone(),
+        rig.config.cross_talk,
+        DecodeParams::default(),
+    )
+    .unwrap()
+}
+
 fn trembling_rig() -> VirtualRig {
     let config = RigConfig::paper(640, 400).unwrap();
     let seq = config.default_sequence().unwrap();
@@ -19,12 +37,7 @@ fn trembling_rig() -> VirtualRig {
 fn a_trembling_hand_decodes_at_every_frame() {
     let rig = trembling_rig();
     let half_period = rig.sequence.period_px(65) / 2.0;
-    let mut decoder = SlidingDecoder::new(
-        rig.sequence.clone(),
-        rig.config.cross_talk,
-        DecodeParams::default(),
-    )
-    .unwrap();
+    let mut decoder = new_decoder(&rig);
     let mut frames: Vec<Frame> = Vec::new();
     let mut truths: Vec<GroundTruth> = Vec::new();
     for i in 0..9u64 {
@@ -59,22 +72,12 @@ fn a_trembling_hand_decodes_at_every_frame() {
 #[test]
 fn a_dropped_frame_is_reported_and_decoding_resumes() {
     let rig = trembling_rig();
-    let mut decoder = SlidingDecoder::new(
-        rig.sequence.clone(),
-        rig.config.cross_talk,
-        DecodeParams::default(),
-    )
-    .unwrap();
+    let mut decoder = new_decoder(&rig);
     let mut frame = rig.blank_frame();
     let mut outcomes = Vec::new();
     for i in [0u64, 1, 2, 4, 5, 6] {
         rig.render(i, &mut frame, None).unwrap();
-        outcomes.push(match decoder.push(&frame).unwrap() {
-            WindowOutcome::Filling { .. } => "filling",
-            WindowOutcome::Unsolvable { .. } => "unsolvable",
-            WindowOutcome::TooSpread { .. } => "spread",
-            WindowOutcome::Decoded(_) => "decoded",
-        });
+        outcomes.push(label(&decoder.push(&frame).unwrap()));
     }
     // Patterns 0 1 2 | 1 2 0: windows (1,2,1) and (2,1,2) repeat a shift.
     assert_eq!(
@@ -96,25 +99,14 @@ fn a_window_spanning_a_whole_dropped_cycle_is_refused() {
     let rig = trembling_rig();
     // Two frame periods plus jitter allowance: a window without drops spans exactly two.
     let max_span_s = 2.5 / rig.config.fps;
-    let mut decoder = SlidingDecoder::new(
-        rig.sequence.clone(),
-        rig.config.cross_talk,
-        DecodeParams::default(),
-    )
-    .unwrap()
-    .with_max_span(max_span_s);
+    let mut decoder = new_decoder(&rig).with_max_span(max_span_s);
     let mut frame = rig.blank_frame();
     let mut outcomes = Vec::new();
     // Frames 3, 4 and 5 (one whole cycle) are lost: (1, 2, 0) from frames 1, 2, 6 is solvable
     // but 5 frame periods long.
     for i in [0u64, 1, 2, 6, 7, 8] {
         rig.render(i, &mut frame, None).unwrap();
-        outcomes.push(match decoder.push(&frame).unwrap() {
-            WindowOutcome::Filling { .. } => "filling",
-            WindowOutcome::Unsolvable { .. } => "unsolvable",
-            WindowOutcome::TooSpread { .. } => "spread",
-            WindowOutcome::Decoded(_) => "decoded",
-        });
+        outcomes.push(label(&decoder.push(&frame).unwrap()));
     }
     assert_eq!(
         outcomes,
@@ -126,12 +118,7 @@ fn a_window_spanning_a_whole_dropped_cycle_is_refused() {
 #[test]
 fn bad_frames_are_refused_with_a_clear_error() {
     let rig = trembling_rig();
-    let mut decoder = SlidingDecoder::new(
-        rig.sequence.clone(),
-        rig.config.cross_talk,
-        DecodeParams::default(),
-    )
-    .unwrap();
+    let mut decoder = new_decoder(&rig);
     let mut frame = rig.blank_frame();
     rig.render(0, &mut frame, None).unwrap();
     decoder.push(&frame).unwrap();
@@ -145,12 +132,7 @@ fn bad_frames_are_refused_with_a_clear_error() {
         DecodeError::PatternIndex { index: 5, len: 3 }
     );
     let gray = Frame::new(640, 400, 1).unwrap();
-    let mut fresh = SlidingDecoder::new(
-        rig.sequence.clone(),
-        rig.config.cross_talk,
-        DecodeParams::default(),
-    )
-    .unwrap();
+    let mut fresh = new_decoder(&rig);
     for i in 0..2 {
         let mut g = gray.clone();
         g.pattern_index = i;
@@ -227,12 +209,7 @@ fn after_a_reset_the_stream_may_change_size() {
         let seq = config.default_sequence().unwrap();
         VirtualRig::new(config, seq).unwrap()
     };
-    let mut decoder = SlidingDecoder::new(
-        rig.sequence.clone(),
-        rig.config.cross_talk,
-        DecodeParams::default(),
-    )
-    .unwrap();
+    let mut decoder = new_decoder(&rig);
     let mut frame = rig.blank_frame();
     for i in 0..3 {
         rig.render(i, &mut frame, None).unwrap();

@@ -150,6 +150,29 @@ struct VerticalBlock<'a> {
     decay: f32,
 }
 
+/// One step of the vertical recursion for three planes: `state = v + g·state`, with
+/// `g = decay` where `links` has the DOWN bit, and `g = 0` (a fresh start) without links.
+#[inline(always)]
+fn step_rows(state: [&mut [f32]; 3], v: [&[f32]; 3], links: Option<&[u8]>, decay: f32) {
+    let [s0, s1, s2] = state;
+    let [a0, a1, a2] = v;
+    match links {
+        Some(l) => {
+            for x in 0..s0.len() {
+                let g = if l[x] & DOWN != 0 { decay } else { 0.0 };
+                s0[x] = a0[x] + g * s0[x];
+                s1[x] = a1[x] + g * s1[x];
+                s2[x] = a2[x] + g * s2[x];
+            }
+        }
+        None => {
+            s0.copy_from_slice(a0);
+            s1.copy_from_slice(a1);
+            s2.copy_from_slice(a2);
+        }
+    }
+}
+
 #[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
 fn vertical_block(c: &VerticalBlock<'_>, planes: [&mut [f32]; 3], state: &mut [f32]) {
     let w = c.w;
@@ -165,20 +188,8 @@ fn vertical_block(c: &VerticalBlock<'_>, planes: [&mut [f32]; 3], state: &mut [f
     s1.fill(0.0);
     s2.fill(0.0);
     for y in warm_start..c.first + c.rows {
-        let (a0, a1, a2) = (v(0, y), v(1, y), v(2, y));
-        if y > warm_start {
-            let l = links(y - 1);
-            for x in 0..w {
-                let g = if l[x] & DOWN != 0 { c.decay } else { 0.0 };
-                s0[x] = a0[x] + g * s0[x];
-                s1[x] = a1[x] + g * s1[x];
-                s2[x] = a2[x] + g * s2[x];
-            }
-        } else {
-            s0.copy_from_slice(a0);
-            s1.copy_from_slice(a1);
-            s2.copy_from_slice(a2);
-        }
+        let previous = (y > warm_start).then(|| links(y - 1));
+        step_rows([s0, s1, s2], [v(0, y), v(1, y), v(2, y)], previous, c.decay);
         if y >= c.first {
             let r = (y - c.first) * w;
             p0[r..r + w].copy_from_slice(s0);
@@ -193,19 +204,8 @@ fn vertical_block(c: &VerticalBlock<'_>, planes: [&mut [f32]; 3], state: &mut [f
     s2.fill(0.0);
     for y in (c.first..warm_end).rev() {
         let (a0, a1, a2) = (v(0, y), v(1, y), v(2, y));
-        if y + 1 < warm_end {
-            let l = links(y);
-            for x in 0..w {
-                let g = if l[x] & DOWN != 0 { c.decay } else { 0.0 };
-                s0[x] = a0[x] + g * s0[x];
-                s1[x] = a1[x] + g * s1[x];
-                s2[x] = a2[x] + g * s2[x];
-            }
-        } else {
-            s0.copy_from_slice(a0);
-            s1.copy_from_slice(a1);
-            s2.copy_from_slice(a2);
-        }
+        let next = (y + 1 < warm_end).then(|| links(y));
+        step_rows([s0, s1, s2], [a0, a1, a2], next, c.decay);
         if y < c.first + c.rows {
             let r = (y - c.first) * w;
             for x in 0..w {
@@ -283,44 +283,34 @@ mod tests {
         assert!((out.unit_im[q].atan2(out.unit_re[q]) - 2.5).abs() < 1e-4);
     }
 
+    /// Forward + backward recursion over one line: `g[i]` links element i to i + 1.
+    fn recurse_line(v: &[f32], g: &[f32]) -> Vec<f32> {
+        let n = v.len();
+        let mut fwd = vec![0.0; n];
+        let mut bwd = vec![0.0; n];
+        for i in 0..n {
+            fwd[i] = v[i] + if i > 0 { g[i - 1] * fwd[i - 1] } else { 0.0 };
+        }
+        for i in (0..n).rev() {
+            bwd[i] = v[i] + if i + 1 < n { g[i] * bwd[i + 1] } else { 0.0 };
+        }
+        (0..n).map(|i| fwd[i] + bwd[i] - v[i]).collect()
+    }
+
     /// The straightforward recursion over whole rows, then whole columns.
     fn reference(v: &[f32], links: &[u8], w: usize, h: usize, a: f32) -> Vec<f32> {
-        let mut horiz = v.to_vec();
+        let gain = |i: usize, bit: u8| if links[i] & bit != 0 { a } else { 0.0 };
+        let mut horiz = vec![0.0; w * h];
         for y in 0..h {
-            let row = &v[y * w..(y + 1) * w];
-            let g = |x: usize| {
-                if links[y * w + x] & RIGHT != 0 {
-                    a
-                } else {
-                    0.0
-                }
-            };
-            let mut fwd = vec![0.0; w];
-            let mut bwd = vec![0.0; w];
-            for x in 0..w {
-                fwd[x] = row[x] + if x > 0 { g(x - 1) * fwd[x - 1] } else { 0.0 };
-            }
-            for x in (0..w).rev() {
-                bwd[x] = row[x] + if x + 1 < w { g(x) * bwd[x + 1] } else { 0.0 };
-            }
-            for x in 0..w {
-                horiz[y * w + x] = fwd[x] + bwd[x] - row[x];
-            }
+            let g: Vec<f32> = (0..w).map(|x| gain(y * w + x, RIGHT)).collect();
+            horiz[y * w..(y + 1) * w].copy_from_slice(&recurse_line(&v[y * w..(y + 1) * w], &g));
         }
-        let mut out = horiz.clone();
+        let mut out = vec![0.0; w * h];
         for x in 0..w {
-            let g = |y: usize| if links[y * w + x] & DOWN != 0 { a } else { 0.0 };
+            let g: Vec<f32> = (0..h).map(|y| gain(y * w + x, DOWN)).collect();
             let col: Vec<f32> = (0..h).map(|y| horiz[y * w + x]).collect();
-            let mut fwd = vec![0.0; h];
-            let mut bwd = vec![0.0; h];
-            for y in 0..h {
-                fwd[y] = col[y] + if y > 0 { g(y - 1) * fwd[y - 1] } else { 0.0 };
-            }
-            for y in (0..h).rev() {
-                bwd[y] = col[y] + if y + 1 < h { g(y) * bwd[y + 1] } else { 0.0 };
-            }
-            for y in 0..h {
-                out[y * w + x] = fwd[y] + bwd[y] - col[y];
+            for (y, value) in recurse_line(&col, &g).into_iter().enumerate() {
+                out[y * w + x] = value;
             }
         }
         out
