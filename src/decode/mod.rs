@@ -230,7 +230,7 @@ impl DecodeOutput {
     pub fn new(width: usize, height: usize, solver: &WindowSolver) -> Self {
         let n = width * height;
         let bands = height.div_ceil(BAND_ROWS);
-        let band_scratch_len = BAND_ROWS * width * (solver.observations + solver.unknowns + 3);
+        let band_scratch_len = scratch_per_band(width, solver);
         Self {
             width,
             height,
@@ -262,8 +262,7 @@ impl DecodeOutput {
             && self.height == height
             && self.frequencies == solver.frequencies.len()
             && self.channels == solver.channels
-            && self.band_scratch_len
-                >= BAND_ROWS * width * (solver.observations + solver.unknowns + 3)
+            && self.band_scratch_len >= scratch_per_band(width, solver)
     }
 
     #[inline]
@@ -286,10 +285,33 @@ impl DecodeOutput {
         self.colour[self.planar(self.channels, c, x, y)]
     }
 
+    /// Heap bytes held by the output and its scratch buffers.
+    pub fn memory_bytes(&self) -> usize {
+        let floats = self.phase_rad.capacity()
+            + self.amplitude.capacity()
+            + self.colour.capacity()
+            + self.coarse_px.capacity()
+            + self.coordinate_px.capacity()
+            + self.unit_re.capacity()
+            + self.unit_im.capacity()
+            + self.support.capacity()
+            + self.smooth_tmp.capacity()
+            + self.vertical_state.capacity()
+            + self.band_scratch.capacity();
+        let bytes = self.invalid.capacity() + self.connect.capacity() + self.jump.capacity();
+        floats * std::mem::size_of::<f32>() + bytes
+    }
+
     /// Number of valid pixels.
     pub fn valid_count(&self) -> usize {
         self.invalid.iter().filter(|&&r| r == 0).count()
     }
+}
+
+/// Scratch floats each band needs: one row of observation planes, unknown planes and three
+/// flag rows (the rows of a band are processed one after another and reuse it).
+fn scratch_per_band(width: usize, solver: &WindowSolver) -> usize {
+    width * (solver.observations + solver.unknowns + 3)
 }
 
 /// Decodes one window of `frames` (oldest first, matching `solver.order`) into `out`. `frames`

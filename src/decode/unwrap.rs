@@ -44,8 +44,8 @@ pub(crate) fn unwrap_and_combine(
         f1,
         x_max,
         params: *params,
-        f: f.clone(),
-        gain: solver.noise_gain.clone(),
+        f,
+        gain: &solver.noise_gain,
     };
     out.coordinate_px
         .par_chunks_mut(w)
@@ -78,14 +78,14 @@ pub(crate) fn unwrap_and_combine(
         );
 }
 
-struct Consts {
+struct Consts<'a> {
     w: usize,
     nf: usize,
     f1: f32,
     x_max: f32,
     params: DecodeParams,
-    f: Vec<f32>,
-    gain: Vec<f32>,
+    f: &'a [f32],
+    gain: &'a [f32],
 }
 
 struct Row<'a> {
@@ -108,7 +108,7 @@ fn round_fast(v: f32) -> f32 {
 }
 
 #[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
-fn chebyshev_row(c: &Consts, row: Row<'_>) {
+fn chebyshev_row(c: &Consts<'_>, row: Row<'_>) {
     let w = c.w;
     let p = &c.params;
     let robust = p.unwrap == UnwrapMethod::ChebyshevRobust;
@@ -171,7 +171,7 @@ fn chebyshev_row(c: &Consts, row: Row<'_>) {
 }
 
 /// Eq. 8 from the lowest frequency upwards; slots are in descending frequency order.
-fn temporal_row(c: &Consts, row: Row<'_>) {
+fn temporal_row(c: &Consts<'_>, row: Row<'_>) {
     let w = c.w;
     let lowest = c.nf - 1;
     for x in 0..w {
