@@ -234,4 +234,41 @@ mod tests {
         empty.camera.width = 0;
         assert!(VirtualRig::new(empty, rig.sequence.clone()).is_err());
     }
+
+    #[test]
+    fn rendered_noise_matches_the_noise_model() {
+        // Two noise draws of the same still image differ by noise only: E[(a − b)²] = 2σ² plus
+        // twice the 8-bit rounding variance 1/12, with σ² = read² + k·signal per pixel.
+        let mut config = RigConfig::paper(320, 200).unwrap();
+        config.scene = SceneConfig::plane();
+        let seq = config.default_sequence().unwrap();
+        let noisy = VirtualRig::new(config.clone(), seq.clone()).unwrap();
+        config.noise = crate::rig::NoiseModel::none();
+        let clean = VirtualRig::new(config, seq).unwrap();
+        let (mut a, mut b, mut c) = (
+            noisy.blank_frame(),
+            noisy.blank_frame(),
+            clean.blank_frame(),
+        );
+        noisy.render_pattern(1, 0, 0.0, &mut a, None).unwrap();
+        noisy.render_pattern(2, 0, 0.0, &mut b, None).unwrap();
+        clean.render_pattern(1, 0, 0.0, &mut c, None).unwrap();
+        let model = noisy.config.noise;
+        let (mut measured, mut predicted) = (0.0, 0.0);
+        for ((&va, &vb), &signal) in a.data.iter().zip(&b.data).zip(&c.data) {
+            // Stay clear of clipping at 0 and 255, where the model no longer holds.
+            if !(20..=235).contains(&signal) {
+                continue;
+            }
+            let d = f64::from(va) - f64::from(vb);
+            measured += d * d;
+            predicted += 2.0 * model.sigma_at(f64::from(signal)).powi(2) + 2.0 / 12.0;
+        }
+        let ratio = measured / predicted;
+        // About 190,000 samples: the ratio's standard error is about √(2/190000) ≈ 0.3 %.
+        assert!(
+            (ratio - 1.0).abs() < 0.03,
+            "measured / predicted variance = {ratio}"
+        );
+    }
 }
