@@ -42,6 +42,13 @@ pub enum PatternError {
     MixedChannels { index: usize },
     #[error("image size {width}×{height} is empty")]
     EmptyImage { width: usize, height: usize },
+    #[error("x_max = {x_max} does not cover a {width}×{height} projector along this axis (needs at least {needed:.1}): the unit phase would wrap and depths alias")]
+    RangeTooShort {
+        x_max: f64,
+        width: usize,
+        height: usize,
+        needed: f64,
+    },
 }
 
 /// The projector coordinate a sequence encodes.
@@ -150,6 +157,21 @@ impl PatternSequence {
         Ok(())
     }
 
+    /// Checks that `x_max` covers every pixel of a `width`×`height` projector, so that the unit
+    /// phase identifies each coded coordinate uniquely.
+    pub fn check_covers(&self, width: usize, height: usize) -> Result<(), PatternError> {
+        let needed = self.axis.min_x_max(width, height);
+        if self.x_max < needed {
+            return Err(PatternError::RangeTooShort {
+                x_max: self.x_max,
+                width,
+                height,
+                needed,
+            });
+        }
+        Ok(())
+    }
+
     /// Angular frequency in radians per projector pixel of index `m`.
     #[inline]
     pub fn frequency(&self, m: u32) -> f64 {
@@ -212,6 +234,15 @@ mod tests {
         assert_eq!(Axis::Rows.min_x_max(912, 1140), 1140.0);
         let d = Axis::Diagonal.min_x_max(912, 1140);
         assert!((d - (2050.0 / 2f64.sqrt() + 1.0)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn range_must_cover_the_projector() {
+        let seq = cps_rgb(107, 1400.0, Axis::Diagonal, 6).unwrap();
+        let err = seq.check_covers(912, 1140).unwrap_err();
+        assert!(err.to_string().contains("needs at least 1450.6"), "{err}");
+        let seq = cps_rgb(65, 912.0, Axis::Columns, 6).unwrap();
+        assert!(seq.check_covers(912, 1140).is_ok());
     }
 
     #[test]

@@ -145,6 +145,7 @@ impl VirtualRig {
     /// Precomputes the camera rays for `config` projecting `sequence`.
     pub fn new(config: RigConfig, sequence: PatternSequence) -> Result<Self, RigError> {
         sequence.validate()?;
+        sequence.check_covers(config.projector.width, config.projector.height)?;
         if !(config.fps.is_finite() && config.fps > 0.0) {
             return Err(RigError::BadFrameRate(config.fps));
         }
