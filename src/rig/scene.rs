@@ -1,8 +1,10 @@
 //! The virtual scene: a textured table plane and a hand (ellipsoid palm, capsule fingers) whose
 //! fingers tremble, all in the camera frame (mm, z forward, looking down at the table).
 //!
-//! Each finger rotates about its knuckle by `α(t) = (A_tip / L)·sin(2π·f·t + φ_finger)`, so its tip
-//! moves about `A_tip` along the optical axis; the whole hand can also oscillate vertically.
+//! Each finger rotates about its knuckle by `α(t) = asin(A_tip / r)·sin(2π·f·t + φ_finger)`, where
+//! `r` is the horizontal arm from the knuckle to the tracked tip point, so that point moves by
+//! `A_tip` along the optical axis relative to the hand; the whole hand also oscillates vertically
+//! (in phase with the index finger), which adds to every point's motion.
 //! [`Scene::at`] poses every primitive at one instant, so each camera frame is rendered at its own
 //! time and motion inside the decode window is real.
 
@@ -24,7 +26,8 @@ pub enum Material {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Tremor {
     pub frequency_hz: f64,
-    /// Peak displacement of each fingertip along the optical axis, mm.
+    /// Peak displacement of each tracked fingertip point along the optical axis relative to the
+    /// hand, mm.
     pub tip_amplitude_mm: f64,
     /// Peak vertical displacement of the whole hand, mm.
     pub hand_amplitude_mm: f64,
