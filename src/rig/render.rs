@@ -271,4 +271,40 @@ mod tests {
             "measured / predicted variance = {ratio}"
         );
     }
+
+    #[test]
+    fn the_rig_projects_what_the_encoder_renders() {
+        // At projector pixel centres the rig's projected level must equal the 8-bit pattern
+        // image the encoder renders for the projector (6-bit level k shown as round(255·k/63)).
+        use crate::pattern::{cps_rgb, render_pattern, Axis};
+        let config = RigConfig::paper(64, 40).unwrap();
+        for (axis, n, x_max) in [(Axis::Columns, 65, 912.0), (Axis::Diagonal, 107, 1481.0)] {
+            let seq = cps_rgb(n, x_max, axis, 6).unwrap();
+            let rig = VirtualRig::new(config.clone(), seq.clone()).unwrap();
+            let levels = 63.0;
+            for index in 0..3 {
+                let image = render_pattern(&seq, index, 912, 1140).unwrap();
+                let posed = rig.scene.at(0.0);
+                let ctx =
+                    super::Context::new(&rig, &posed, seq.entries[index], 0, super::V3::zeros());
+                for &(u, v) in &[
+                    (0usize, 0usize),
+                    (17, 3),
+                    (455, 570),
+                    (911, 1139),
+                    (300, 901),
+                ] {
+                    let x = axis.coordinate(u as f64, v as f64);
+                    for c in 0..3 {
+                        let rig_level = super::projected_level(&ctx.channels[c], x, levels);
+                        let encoded = f64::from(image.data[(v * 912 + u) * 3 + c]) / 255.0;
+                        assert!(
+                            (rig_level - encoded).abs() < 0.5 / 255.0,
+                            "{axis:?} image {index} ({u},{v}) channel {c}: {rig_level} vs {encoded}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }
