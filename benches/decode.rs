@@ -1,4 +1,4 @@
-//! Decode and virtual-rig benchmarks at 640×400 and the paper's 1920×1200.
+//! Decode, triangulation and virtual-rig benchmarks at 640×400 and the paper's 1920×1200.
 //!
 //! `cargo bench -p tremorscan --bench decode`. Figures go to `docs/benchmarks.md`.
 #![allow(clippy::unwrap_used, reason = "benchmark setup")]
@@ -8,6 +8,7 @@ use std::time::Duration;
 use tremorscan::decode::{decode_window, DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
 use tremorscan::frame::Frame;
 use tremorscan::rig::{RigConfig, VirtualRig};
+use tremorscan::triangulate::{PointCloud, Triangulator};
 
 const SIZES: [(usize, usize); 2] = [(640, 400), (1920, 1200)];
 
@@ -69,5 +70,33 @@ fn bench_rig(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_decode, bench_rig);
+fn bench_triangulate(c: &mut Criterion) {
+    let mut group = c.benchmark_group("triangulate");
+    group
+        .sample_size(20)
+        .measurement_time(Duration::from_secs(6));
+    for (w, h) in SIZES {
+        let rig = rig(w, h);
+        let mut decoder = tremorscan::decode::SlidingDecoder::new(
+            rig.sequence.clone(),
+            rig.config.cross_talk,
+            DecodeParams::default(),
+        )
+        .unwrap();
+        let mut frame = rig.blank_frame();
+        for i in 0..3 {
+            rig.render(i, &mut frame, None).unwrap();
+            decoder.push(&frame).unwrap();
+        }
+        let decoded = decoder.output().unwrap();
+        let triangulator = Triangulator::new(rig.stereo_model()).unwrap();
+        let mut cloud = PointCloud::default();
+        group.bench_function(BenchmarkId::from_parameter(format!("{w}x{h}")), |b| {
+            b.iter(|| triangulator.triangulate(decoded, &mut cloud).unwrap());
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_decode, bench_triangulate, bench_rig);
 criterion_main!(benches);

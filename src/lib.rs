@@ -7,6 +7,7 @@
 //! * [`color`]: the cross-talk model `c = A·p + b`.
 //! * [`geometry`]: lens models and rigid transforms.
 //! * [`decode`]: window solve, robust unwrapping, combination, validity, sliding window.
+//! * [`triangulate`]: decoded coordinates to an organised, coloured point cloud.
 //! * [`rig`]: the virtual projector–camera rig with a trembling hand and exact ground truth.
 
 pub mod color;
@@ -15,3 +16,4 @@ pub mod frame;
 pub mod geometry;
 pub mod pattern;
 pub mod rig;
+pub mod triangulate;

@@ -180,6 +180,16 @@ impl VirtualRig {
         self.config.camera.width
     }
 
+    /// The rig's exact calibration, as a triangulator needs it.
+    pub fn stereo_model(&self) -> crate::triangulate::StereoModel {
+        crate::triangulate::StereoModel {
+            camera: self.config.camera,
+            projector: self.config.projector,
+            projector_from_camera: self.config.projector_from_camera,
+            axis: self.sequence.axis,
+        }
+    }
+
     pub fn height(&self) -> usize {
         self.config.camera.height
     }

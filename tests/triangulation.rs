@@ -1,0 +1,115 @@
+//! Triangulation against the virtual rig's ground truth depth.
+#![allow(clippy::unwrap_used, reason = "tests")]
+
+mod common;
+
+use common::{decode_once, still_hand_rig};
+use tremorscan::decode::DecodeParams;
+use tremorscan::pattern::{cps_rgb, Axis};
+use tremorscan::rig::{GroundTruth, NoiseModel, VirtualRig};
+use tremorscan::triangulate::{PointCloud, Triangulator};
+
+#[test]
+fn exact_coordinates_give_exact_depth_on_every_axis() {
+    for (axis, n, x_max) in [
+        (Axis::Columns, 65, 912.0),
+        (Axis::Rows, 81, 1140.0),
+        (Axis::Diagonal, 107, 1481.0),
+    ] {
+        let config = still_hand_rig(NoiseModel::none());
+        let seq = cps_rgb(n, x_max, axis, 6).unwrap();
+        let rig = VirtualRig::new(config, seq).unwrap();
+        let triangulator = Triangulator::new(rig.stereo_model()).unwrap();
+        let mut frame = rig.blank_frame();
+        let mut truth = GroundTruth::default();
+        rig.render(0, &mut frame, Some(&mut truth)).unwrap();
+        let (mut worst, mut count) = (0f64, 0usize);
+        for (p, (&x, &depth)) in truth.coordinate_px.iter().zip(&truth.depth_mm).enumerate() {
+            if !x.is_finite() {
+                continue;
+            }
+            let x = f64::from(x);
+            let point = triangulator.point(p, x).unwrap();
+            // The truth is stored in f32: the coordinate to about 6·10⁻⁵ px at 1500 px and the
+            // depth to about 3·10⁻⁵ mm. The depth error allowed is that coordinate precision
+            // times this pixel's depth sensitivity (large where the coded planes nearly contain
+            // the camera ray, as for rows coded across a horizontal baseline), plus 10⁻⁴ mm.
+            let z = |dx: f64| triangulator.point(p, x + dx).map_or(f64::NAN, |q| q.z);
+            let sensitivity = ((z(0.01) - z(-0.01)) / 0.02).abs();
+            let allowed = 1e-4 * sensitivity + 1e-4;
+            let err = (point.z - f64::from(depth)).abs();
+            assert!(
+                err <= allowed,
+                "{axis:?} pixel {p}: {err} mm (allowed {allowed})"
+            );
+            worst = worst.max(err);
+            count += 1;
+        }
+        assert!(count > 200_000, "{axis:?}: {count} lit pixels");
+        if axis != Axis::Rows {
+            // With a baseline across the coded direction the sensitivity stays near 1 mm/px.
+            assert!(worst < 1e-3, "{axis:?}: worst depth error {worst} mm");
+        }
+    }
+}
+
+#[test]
+fn decoded_cloud_matches_the_true_surface() {
+    let config = still_hand_rig(NoiseModel::default());
+    let seq = config.default_sequence().unwrap();
+    let (_, decoded) = decode_once(config.clone(), &seq, DecodeParams::default());
+    let rig = VirtualRig::new(config, seq).unwrap();
+    let mut truth = GroundTruth::default();
+    let mut frame = rig.blank_frame();
+    rig.render(1, &mut frame, Some(&mut truth)).unwrap();
+    let triangulator = Triangulator::new(rig.stereo_model()).unwrap();
+    let mut cloud = PointCloud::default();
+    triangulator.triangulate(&decoded, &mut cloud).unwrap();
+    assert_eq!(cloud.valid_count(), decoded.valid_count());
+    // The fast path (precomputed quadratic distortion offset, one plane solve) against the exact
+    // Newton solution, pixel by pixel.
+    let mut worst_fast = 0f64;
+    for (p, point) in cloud.point_in_camera_mm.iter().enumerate() {
+        if point[2].is_finite() {
+            let exact = triangulator
+                .point(p, f64::from(decoded.coordinate_px[p]))
+                .unwrap();
+            worst_fast = worst_fast.max((f64::from(point[2]) - exact.z).abs());
+        }
+    }
+    assert!(worst_fast < 1e-3, "fast path off by {worst_fast} mm");
+    let mut sum2 = 0.0;
+    let mut count = 0usize;
+    let mut worst = 0f64;
+    for (point, &depth) in cloud.point_in_camera_mm.iter().zip(&truth.depth_mm) {
+        if point[2].is_finite() {
+            let err = f64::from(point[2] - depth);
+            sum2 += err * err;
+            worst = worst.max(err.abs());
+            count += 1;
+        }
+    }
+    let rms = (sum2 / count as f64).sqrt();
+    eprintln!("depth RMS {rms:.4} mm, worst {worst:.3} mm over {count} points");
+    // Depth sensitivity here is about z²/(f_p·b·cos) ≈ 500²/(1380·150) ≈ 1.2 mm per projector
+    // pixel, and the decoded coordinate noise at the default noise is about 0.08 px RMS, so the
+    // depth RMS should be near 0.1 mm; 0.25 mm leaves room for the steeper parts of the hand.
+    assert!(rms < 0.25, "depth RMS {rms} mm over {count} points");
+    // No wrong fringe order: one period (28 px) would be about 30 mm.
+    assert!(worst < 5.0, "worst depth error {worst} mm");
+}
+
+#[test]
+fn a_map_of_the_wrong_size_is_refused() {
+    let config = still_hand_rig(NoiseModel::default());
+    let seq = config.default_sequence().unwrap();
+    let (_, decoded) = decode_once(config.clone(), &seq, DecodeParams::default());
+    let mut small = config;
+    small.camera = small.camera.resized(320, 200).unwrap();
+    let rig = VirtualRig::new(small, seq).unwrap();
+    let triangulator = Triangulator::new(rig.stereo_model()).unwrap();
+    let err = triangulator
+        .triangulate(&decoded, &mut PointCloud::default())
+        .unwrap_err();
+    assert!(err.to_string().contains("640×400"), "{err}");
+}
