@@ -5,11 +5,13 @@
 //! * [`pattern`]: one description for every phase-shifting codec, builders and pattern rendering.
 //! * [`frame`]: 8-bit camera frames with time and pattern index.
 //! * [`color`]: the cross-talk model `c = A·p + b`.
+//! * [`calibrate`]: colour (cross-talk) calibration from the paper's Table 1 captures.
 //! * [`geometry`]: lens models and rigid transforms.
 //! * [`decode`]: window solve, robust unwrapping, combination, validity, sliding window.
 //! * [`triangulate`]: decoded coordinates to an organised, coloured point cloud.
 //! * [`rig`]: the virtual projector–camera rig with a trembling hand and exact ground truth.
 
+pub mod calibrate;
 pub mod color;
 pub mod decode;
 pub mod frame;

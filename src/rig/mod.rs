@@ -17,6 +17,7 @@ pub mod scene;
 pub mod truth;
 
 pub use noise::NoiseModel;
+pub use render::Projection;
 pub use scene::{Scene, SceneConfig, Tremor, POINT_NAMES};
 pub use truth::GroundTruth;
 
@@ -236,15 +237,6 @@ impl VirtualRig {
         frame: &mut Frame,
         truth: Option<&mut GroundTruth>,
     ) -> Result<(), RigError> {
-        let (w, h) = (self.width(), self.height());
-        if frame.width != w || frame.height != h || frame.channels != 3 {
-            return Err(RigError::WrongFrameSize {
-                width: w,
-                height: h,
-                got_width: frame.width,
-                got_height: frame.height,
-            });
-        }
         let entry =
             *self
                 .sequence
@@ -254,9 +246,50 @@ impl VirtualRig {
                     index: pattern_index,
                     len: self.sequence.entries.len(),
                 })?;
+        self.render_projection(
+            noise_frame,
+            Projection::Pattern(entry),
+            time_s,
+            frame,
+            truth,
+        )?;
+        frame.pattern_index = pattern_index;
+        Ok(())
+    }
+
+    /// Renders the scene under a constant projected colour (8-bit levels per channel, as in the
+    /// paper's Table 1) at `time_s`. The frame's `pattern_index` is set to 0.
+    pub fn render_flat(
+        &self,
+        noise_frame: u64,
+        levels: [u8; 3],
+        time_s: f64,
+        frame: &mut Frame,
+        truth: Option<&mut GroundTruth>,
+    ) -> Result<(), RigError> {
+        self.render_projection(noise_frame, Projection::Flat(levels), time_s, frame, truth)
+    }
+
+    fn render_projection(
+        &self,
+        noise_frame: u64,
+        projection: Projection,
+        time_s: f64,
+        frame: &mut Frame,
+        truth: Option<&mut GroundTruth>,
+    ) -> Result<(), RigError> {
+        let (w, h) = (self.width(), self.height());
+        if frame.width != w || frame.height != h || frame.channels != 3 {
+            return Err(RigError::WrongFrameSize {
+                width: w,
+                height: h,
+                got_width: frame.width,
+                got_height: frame.height,
+            });
+        }
         frame.data.resize(w * h * 3, 0);
         frame.time_s = time_s;
-        frame.pattern_index = pattern_index;
+        frame.pattern_index = 0;
         let mut posed = self.scene.at(time_s);
         posed.cull(
             &self.config.camera,
@@ -266,7 +299,7 @@ impl VirtualRig {
         let ctx = render::Context::new(
             self,
             &posed,
-            entry,
+            projection,
             noise_frame,
             self.projector_centre_in_camera,
         );

@@ -25,28 +25,49 @@ pub(crate) struct ChannelPlan {
     frequency: f64,
     shift_rad: f64,
     skin_attenuation: f64,
+    /// A constant level in `[0, 1]` instead of a fringe (colour calibration patterns).
+    flat: Option<f64>,
+}
+
+/// What the projector shows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Projection {
+    /// An entry of the rig's pattern sequence.
+    Pattern(PatternEntry),
+    /// A constant colour, 8-bit levels per projector channel (paper Table 1).
+    Flat([u8; 3]),
 }
 
 impl<'a> Context<'a> {
     pub fn new(
         rig: &'a VirtualRig,
         posed: &'a PosedScene,
-        entry: PatternEntry,
+        projection: Projection,
         noise_frame: u64,
         projector_centre: V3,
     ) -> Self {
-        let codes = entry.codes();
-        let channels = std::array::from_fn(|i| {
-            let code = codes[i.min(codes.len() - 1)];
-            let frequency = rig.sequence.frequency(code.m);
-            // A Gaussian blur of σ px scales a sinusoid of frequency f by exp(−(fσ)²/2) and
-            // keeps its phase.
-            let fs = frequency * rig.config.subsurface_sigma_px;
-            ChannelPlan {
-                frequency,
-                shift_rad: code.shift_rad,
-                skin_attenuation: (-0.5 * fs * fs).exp(),
+        let channels = std::array::from_fn(|i| match projection {
+            Projection::Pattern(entry) => {
+                let codes = entry.codes();
+                let code = codes[i.min(codes.len() - 1)];
+                let frequency = rig.sequence.frequency(code.m);
+                // A Gaussian blur of σ px scales a sinusoid of frequency f by exp(−(fσ)²/2) and
+                // keeps its phase.
+                let fs = frequency * rig.config.subsurface_sigma_px;
+                ChannelPlan {
+                    frequency,
+                    shift_rad: code.shift_rad,
+                    skin_attenuation: (-0.5 * fs * fs).exp(),
+                    flat: None,
+                }
             }
+            Projection::Flat(levels) => ChannelPlan {
+                frequency: 0.0,
+                shift_rad: 0.0,
+                // A constant has no fringe to blur.
+                skin_attenuation: 1.0,
+                flat: Some(f64::from(levels[i]) / 255.0),
+            },
         });
         Self {
             rig,
@@ -64,6 +85,9 @@ impl<'a> Context<'a> {
 #[inline]
 fn projected_level(plan: &ChannelPlan, x: f64, levels: f64) -> f64 {
     use std::f64::consts::TAU;
+    if let Some(flat) = plan.flat {
+        return (flat * levels + 0.5) as u32 as f64 / levels;
+    }
     let phase = plan.frequency * x + plan.shift_rad;
     let phase = phase - TAU * ((phase * (1.0 / TAU)) as i64 as f64);
     let ideal = 0.5 + 0.5 * f64::from((phase as f32).cos());
@@ -285,8 +309,13 @@ mod tests {
             for index in 0..3 {
                 let image = render_pattern(&seq, index, 912, 1140).unwrap();
                 let posed = rig.scene.at(0.0);
-                let ctx =
-                    super::Context::new(&rig, &posed, seq.entries[index], 0, super::V3::zeros());
+                let ctx = super::Context::new(
+                    &rig,
+                    &posed,
+                    super::Projection::Pattern(seq.entries[index]),
+                    0,
+                    super::V3::zeros(),
+                );
                 for &(u, v) in &[
                     (0usize, 0usize),
                     (17, 3),

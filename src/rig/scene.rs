@@ -42,6 +42,8 @@ pub struct SceneConfig {
     pub table_tilt_rad: f64,
     /// Print a colour texture on the table.
     pub table_texture: bool,
+    /// Table albedo (R, G, B) where it is not textured.
+    pub table_albedo: [f64; 3],
     /// The hand, or `None` for a bare table.
     pub hand: Option<Tremor>,
     /// Height of the palm centre above the table, mm.
@@ -55,6 +57,7 @@ impl SceneConfig {
             table_distance_mm: 500.0,
             table_tilt_rad: 0.05,
             table_texture: true,
+            table_albedo: [0.72, 0.70, 0.66],
             hand: Some(Tremor {
                 frequency_hz: 5.3,
                 tip_amplitude_mm: 2.0,
@@ -70,8 +73,17 @@ impl SceneConfig {
             table_distance_mm: 500.0,
             table_tilt_rad: 0.0,
             table_texture: false,
+            table_albedo: [0.72, 0.70, 0.66],
             hand: None,
             hand_height_mm: 0.0,
+        }
+    }
+
+    /// A flat white target (albedo 1) filling the view: the colour calibration's scene.
+    pub fn white_target() -> Self {
+        Self {
+            table_albedo: [1.0, 1.0, 1.0],
+            ..Self::plane()
         }
     }
 }
@@ -100,6 +112,7 @@ pub struct PosedScene {
     table_point: V3,
     table_normal: V3,
     pub table_texture: bool,
+    table_albedo: [f64; 3],
     parts: Vec<HandPart>,
     /// True positions of [`POINT_NAMES`] (empty without a hand), camera frame, mm.
     pub points: Vec<V3>,
@@ -133,6 +146,7 @@ impl Scene {
             table_point,
             table_normal,
             table_texture: c.table_texture,
+            table_albedo: c.table_albedo,
             parts: Vec::with_capacity(11),
             points: Vec::with_capacity(POINT_NAMES.len()),
         };
@@ -266,7 +280,7 @@ impl PosedScene {
     /// Table albedo (R, G, B) at a table point: light paper with a printed pattern.
     pub fn table_albedo(&self, p: &V3) -> [f64; 3] {
         if !self.table_texture {
-            return [0.72, 0.70, 0.66];
+            return self.table_albedo;
         }
         let checker = ((p.x / 40.0).floor() + (p.y / 40.0).floor()).rem_euclid(2.0);
         let stripe = 0.5 + 0.5 * (p.x * 0.11 + p.y * 0.07).sin();
