@@ -1,11 +1,14 @@
-//! Calibration of the projector–camera rig. Today: colour (cross-talk) calibration; geometric
+//! Calibration of the projector–camera rig. Today: colour (cross-talk) calibration and the robust
+//! local fit that reads the projector coordinate at a chessboard corner; the rest of geometric
 //! calibration lands here next.
 
 pub mod colour;
+pub mod local_fit;
 
 pub use colour::{
     calibrate_colour, ColourCalibration, ColourOptions, ColourWarning, Roi, TABLE1_LEVELS,
 };
+pub use local_fit::{fit_coordinate, LocalFit, LocalFitOptions};
 
 use crate::frame::FrameError;
 
@@ -24,6 +27,13 @@ pub enum CalibrationError {
     },
     #[error("capture {capture} has no usable (unsaturated) sample in the region of interest")]
     NoUsableSamples { capture: usize },
-    #[error("the colour samples do not determine the cross-talk matrix (singular system)")]
+    #[error("the samples do not determine the fit (singular system)")]
     Singular,
+    #[error("only {found} valid decoded pixels around ({u:.1}, {v:.1}), {needed} are needed for a local fit")]
+    TooFewPoints {
+        u: f64,
+        v: f64,
+        found: usize,
+        needed: usize,
+    },
 }
