@@ -9,6 +9,7 @@
 //! falloff), multiply by albedo, mix through the cross-talk `c = A·p + b`, add ambient light, read
 //! and shot noise, and quantise to 8 bits with saturation.
 
+pub mod board;
 pub mod evaluate;
 pub mod noise;
 pub mod primitives;
@@ -16,6 +17,7 @@ pub mod render;
 pub mod scene;
 pub mod truth;
 
+pub use board::Chessboard;
 pub use noise::NoiseModel;
 pub use render::Projection;
 pub use scene::{Scene, SceneConfig, Tremor, POINT_NAMES};
@@ -308,6 +310,10 @@ impl VirtualRig {
                 t.resize(w, h);
                 t.time_s = time_s;
                 t.points_in_camera.clone_from(&posed.points);
+                t.board_corners_in_camera.clear();
+                if let Some(board) = posed.board() {
+                    t.board_corners_in_camera.extend(board.corners_in_camera());
+                }
                 render::render_rows(&ctx, &self.rays, &mut frame.data, Some(t));
             }
             None => render::render_rows(&ctx, &self.rays, &mut frame.data, None),

@@ -164,11 +164,10 @@ fn shade_pixel(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize) -> Sample {
         };
         sample.depth_mm = point.z as f32;
         let skin = hit.material == Material::Skin;
-        sample.surface = if skin { surface::SKIN } else { surface::TABLE };
-        albedo = if skin {
-            SKIN_ALBEDO
-        } else {
-            ctx.posed.table_albedo(&point)
+        (sample.surface, albedo) = match hit.material {
+            Material::Skin => (surface::SKIN, SKIN_ALBEDO),
+            Material::Table => (surface::TABLE, ctx.posed.table_albedo(&point)),
+            Material::Board => (surface::BOARD, ctx.posed.board_albedo(&point)),
         };
         let to_projector = ctx.projector_centre - point;
         let distance = to_projector.norm();
@@ -182,7 +181,7 @@ fn shade_pixel(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize) -> Sample {
         if let (Some((u, v)), true) = (lit_pixel, lambert > 0.0) {
             let shadowed =
                 ctx.posed
-                    .hand_occludes(&(point + normal * 1e-3), &light_dir, distance, (u, v));
+                    .occludes(&(point + normal * 1e-3), &light_dir, distance, (u, v));
             if !shadowed {
                 let x = seq.axis.coordinate(u, v);
                 sample.coordinate_px = x as f32;

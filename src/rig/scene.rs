@@ -8,6 +8,7 @@
 //! [`Scene::at`] poses every primitive at one instant, so each camera frame is rendered at its own
 //! time and motion inside the decode window is real.
 
+use super::board::Chessboard;
 use super::primitives::{Capsule, Ellipsoid, HandPart, PixelBox, Shape};
 use crate::geometry::{LensModel, Pose};
 use nalgebra::{Rotation3, Unit, Vector3};
@@ -20,6 +21,8 @@ type V3 = Vector3<f64>;
 pub enum Material {
     Table,
     Skin,
+    /// The calibration chessboard.
+    Board,
 }
 
 /// Tremor of the hand.
@@ -48,6 +51,8 @@ pub struct SceneConfig {
     pub hand: Option<Tremor>,
     /// Height of the palm centre above the table, mm.
     pub hand_height_mm: f64,
+    /// A calibration chessboard in front of the table, if any.
+    pub board: Option<Chessboard>,
 }
 
 impl SceneConfig {
@@ -64,6 +69,7 @@ impl SceneConfig {
                 hand_amplitude_mm: 0.3,
             }),
             hand_height_mm: 45.0,
+            board: None,
         }
     }
 
@@ -76,6 +82,17 @@ impl SceneConfig {
             table_albedo: [0.72, 0.70, 0.66],
             hand: None,
             hand_height_mm: 0.0,
+            board: None,
+        }
+    }
+
+    /// A chessboard at `camera_from_board` in front of a plain table: a geometric calibration
+    /// view.
+    pub fn chessboard(board: Chessboard) -> Self {
+        Self {
+            table_distance_mm: 650.0,
+            board: Some(board),
+            ..Self::plane()
         }
     }
 
@@ -113,6 +130,7 @@ pub struct PosedScene {
     table_normal: V3,
     pub table_texture: bool,
     table_albedo: [f64; 3],
+    board: Option<Chessboard>,
     parts: Vec<HandPart>,
     /// True positions of [`POINT_NAMES`] (empty without a hand), camera frame, mm.
     pub points: Vec<V3>,
@@ -147,6 +165,7 @@ impl Scene {
             table_normal,
             table_texture: c.table_texture,
             table_albedo: c.table_albedo,
+            board: c.board,
             parts: Vec::with_capacity(11),
             points: Vec::with_capacity(POINT_NAMES.len()),
         };
@@ -240,6 +259,17 @@ impl PosedScene {
                 });
             }
         }
+        if let Some(board) = &self.board {
+            if let Some((t, _)) = board.intersect(origin, dir) {
+                if best.is_none_or(|h| t < h.distance_mm) {
+                    best = Some(Hit {
+                        distance_mm: t,
+                        normal: board.normal_in_camera(),
+                        material: Material::Board,
+                    });
+                }
+            }
+        }
         let mut limit = best.map_or(f64::INFINITY, |h| h.distance_mm);
         for part in &self.parts {
             if !part.camera_box.contains(pixel) {
@@ -259,21 +289,34 @@ impl PosedScene {
         best
     }
 
-    /// Whether the hand blocks the segment from `origin` to `origin + max_t·dir`, where
-    /// `projector_pixel` is where `origin` appears in the projector image.
-    pub fn hand_occludes(
-        &self,
-        origin: &V3,
-        dir: &V3,
-        max_t: f64,
-        projector_pixel: (f64, f64),
-    ) -> bool {
-        self.parts.iter().any(|part| {
-            part.projector_box.contains(projector_pixel)
-                && part
-                    .shape
-                    .intersect(origin, dir)
-                    .is_some_and(|(t, _)| t < max_t)
+    /// Whether the hand or the board blocks the segment from `origin` to `origin + max_t·dir`,
+    /// where `projector_pixel` is where `origin` appears in the projector image.
+    pub fn occludes(&self, origin: &V3, dir: &V3, max_t: f64, projector_pixel: (f64, f64)) -> bool {
+        let board_blocks = self
+            .board
+            .as_ref()
+            .and_then(|b| b.intersect(origin, dir))
+            .is_some_and(|(t, _)| t < max_t);
+        board_blocks
+            || self.parts.iter().any(|part| {
+                part.projector_box.contains(projector_pixel)
+                    && part
+                        .shape
+                        .intersect(origin, dir)
+                        .is_some_and(|(t, _)| t < max_t)
+            })
+    }
+
+    /// The chessboard, if the scene has one.
+    pub fn board(&self) -> Option<&Chessboard> {
+        self.board.as_ref()
+    }
+
+    /// Albedo (R, G, B) of the chessboard at a camera-frame point on it.
+    pub fn board_albedo(&self, point_in_camera: &V3) -> [f64; 3] {
+        self.board.as_ref().map_or([0.0; 3], |b| {
+            let in_board = b.camera_from_board.inverse().transform(point_in_camera);
+            [b.albedo(&in_board); 3]
         })
     }
 
@@ -358,8 +401,8 @@ mod tests {
                     continue;
                 };
                 let origin = point + light * 1e-3;
-                let sa = plain.hand_occludes(&origin, &light, to_projector.norm(), pp);
-                let sb = culled.hand_occludes(&origin, &light, to_projector.norm(), pp);
+                let sa = plain.occludes(&origin, &light, to_projector.norm(), pp);
+                let sb = culled.occludes(&origin, &light, to_projector.norm(), pp);
                 assert_eq!(sa, sb, "shadow at {pixel:?}");
                 shadows += usize::from(sa);
             }

@@ -7,6 +7,7 @@ pub mod surface {
     pub const NONE: u8 = 0;
     pub const TABLE: u8 = 1;
     pub const SKIN: u8 = 2;
+    pub const BOARD: u8 = 3;
 }
 
 /// Per-pixel truth and the true positions of the tracked surface points, at the frame's time.
@@ -24,6 +25,8 @@ pub struct GroundTruth {
     pub surface: Vec<u8>,
     /// Tracked points (see [`crate::rig::POINT_NAMES`]), camera frame, mm.
     pub points_in_camera: Vec<Vector3<f64>>,
+    /// Inner corners of the chessboard, row by row, camera frame, mm (empty without a board).
+    pub board_corners_in_camera: Vec<Vector3<f64>>,
 }
 
 impl GroundTruth {
