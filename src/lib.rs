@@ -16,6 +16,7 @@ pub mod color;
 pub mod decode;
 pub mod frame;
 pub mod geometry;
+mod hash;
 pub mod pattern;
 pub mod rig;
 pub mod triangulate;

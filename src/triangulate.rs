@@ -293,7 +293,8 @@ fn distortion_correction(model: &StereoModel, d: &Vector3<f64>) -> [f32; 4] {
     let d01 = (y1 - y0) / (x1 - x0);
     let d12 = (y2 - y1) / (x2 - x1);
     let c2 = (d12 - d01) / (x2 - x0);
-    // y = y1 + d01'·(x − x1) + c2·(x − x1)², with the slope at x1 from both neighbours.
+    // The same polynomial expanded about x1: y = y1 + c1·(x − x1) + c2·(x − x1)², where c1 is its
+    // slope at x1.
     let c1 = d01 + c2 * (x1 - x0);
     [x1 as f32, y1 as f32, c1 as f32, c2 as f32]
 }

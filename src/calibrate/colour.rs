@@ -20,6 +20,7 @@
 use super::CalibrationError;
 use crate::color::CrossTalk;
 use crate::frame::Frame;
+use crate::hash::{splitmix64, SPLITMIX_INCREMENT};
 use nalgebra::{Matrix3, Vector3};
 
 /// The paper's Table 1: projected colours (R, G, B levels) of the ten calibration captures.
@@ -237,11 +238,9 @@ fn sample_pixels(roi: Roi, width: usize, count: usize, seed: u64) -> Vec<usize> 
     // SplitMix64: consecutive outputs are independent, unlike the low bits of an LCG.
     let mut state = seed;
     let mut next = || {
-        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        (z ^ (z >> 31)) as usize
+        let value = splitmix64(state) as usize;
+        state = state.wrapping_add(SPLITMIX_INCREMENT);
+        value
     };
     (0..count.max(1))
         .map(|_| {

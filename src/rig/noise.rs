@@ -4,6 +4,8 @@
 //! so rendering is deterministic for a seed whatever the thread schedule, and any frame can be
 //! rendered again on its own.
 
+use crate::hash::splitmix64;
+
 /// Noise of the simulated camera, in gray levels.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoiseModel {
@@ -48,14 +50,6 @@ impl Default for NoiseModel {
             shot_variance_per_gray: 0.01,
         }
     }
-}
-
-#[inline]
-fn splitmix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 /// Two independent standard normal samples for `(seed, frame, pixel, stream)`.
