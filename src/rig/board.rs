@@ -82,6 +82,21 @@ impl Chessboard {
         inside.then_some((t, in_board))
     }
 
+    /// Board-frame point where the ray `origin + t·dir` meets the board's plane (edges ignored).
+    pub fn intersect_plane(&self, origin: &V3, dir: &V3) -> Option<V3> {
+        let normal = self.normal_in_camera();
+        let denom = dir.dot(&normal);
+        if denom.abs() < 1e-12 {
+            return None;
+        }
+        let t = (self.camera_from_board.translation_mm - origin).dot(&normal) / denom;
+        Some(
+            self.camera_from_board
+                .inverse()
+                .transform(&(origin + dir * t)),
+        )
+    }
+
     /// Albedo at a board-frame point (gray: the same on all channels).
     pub fn albedo(&self, in_board: &V3) -> f64 {
         let s = self.square_mm;

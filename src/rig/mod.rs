@@ -10,6 +10,7 @@
 //! and shot noise, and quantise to 8 bits with saturation.
 
 pub mod board;
+pub mod captures;
 pub mod evaluate;
 pub mod noise;
 pub mod primitives;

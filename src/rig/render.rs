@@ -138,6 +138,28 @@ pub(crate) fn render_rows(
     }
 }
 
+/// Area-averaged board albedo at `pixel`, its footprint taken from the neighbouring rays (the
+/// previous ones, mirrored, on the last row and column).
+fn board_albedo(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize, dir: &V3) -> [f64; 3] {
+    let (w, h) = (ctx.rig.width(), ctx.rig.height());
+    let (x, y) = (pixel % w, pixel / w);
+    let ray = |p: usize| {
+        let r = rays[p];
+        V3::new(f64::from(r[0]), f64::from(r[1]), f64::from(r[2]))
+    };
+    let step_u = if x + 1 < w {
+        ray(pixel + 1)
+    } else {
+        dir * 2.0 - ray(pixel - 1)
+    };
+    let step_v = if y + 1 < h {
+        ray(pixel + w)
+    } else {
+        dir * 2.0 - ray(pixel - w)
+    };
+    ctx.posed.board_albedo_over_pixel(dir, &step_u, &step_v)
+}
+
 fn shade_pixel(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize) -> Sample {
     let cfg = &ctx.rig.config;
     let seq = &ctx.rig.sequence;
@@ -167,7 +189,7 @@ fn shade_pixel(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize) -> Sample {
         (sample.surface, albedo) = match hit.material {
             Material::Skin => (surface::SKIN, SKIN_ALBEDO),
             Material::Table => (surface::TABLE, ctx.posed.table_albedo(&point)),
-            Material::Board => (surface::BOARD, ctx.posed.board_albedo(&point)),
+            Material::Board => (surface::BOARD, board_albedo(ctx, rays, pixel, &dir)),
         };
         let to_projector = ctx.projector_centre - point;
         let distance = to_projector.norm();

@@ -320,6 +320,36 @@ impl PosedScene {
         })
     }
 
+    /// Mean albedo of the chessboard over one camera pixel: the pixel's footprint on the board
+    /// is the parallelogram spanned by the hits of the neighbouring pixels' rays (`step_u`,
+    /// `step_v`, board frame), averaged over 16 samples, as a sensor integrates over its
+    /// pixel. Without it the square edges would be point-sampled and step by whole pixels.
+    pub fn board_albedo_over_pixel(&self, dir: &V3, step_u_dir: &V3, step_v_dir: &V3) -> [f64; 3] {
+        let Some(b) = self.board.as_ref() else {
+            return [0.0; 3];
+        };
+        let origin = V3::zeros();
+        let at = |d: &V3| b.intersect_plane(&origin, d);
+        let Some(centre) = at(dir) else {
+            return [b.light_albedo; 3];
+        };
+        let (Some(pu), Some(pv)) = (at(step_u_dir), at(step_v_dir)) else {
+            return [b.albedo(&centre); 3];
+        };
+        let (du, dv) = (pu - centre, pv - centre);
+        // 16 samples, one in every row and every column of a 16×16 sub-grid (the column of
+        // row k is 5·k mod 16), so an edge parallel to the pixel grid is resolved to 1/16 px
+        // rather than the 1/4 px of a regular 4×4 grid.
+        const N: usize = 16;
+        let mut sum = 0.0;
+        for k in 0..N {
+            let s = (k as f64 + 0.5) / N as f64 - 0.5;
+            let t = ((5 * k) % N) as f64 / N as f64 + 0.5 / N as f64 - 0.5;
+            sum += b.albedo(&(centre + du * s + dv * t));
+        }
+        [sum / N as f64; 3]
+    }
+
     /// Table albedo (R, G, B) at a table point: light paper with a printed pattern.
     pub fn table_albedo(&self, p: &V3) -> [f64; 3] {
         if !self.table_texture {
