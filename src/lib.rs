@@ -19,4 +19,5 @@ pub mod geometry;
 mod hash;
 pub mod pattern;
 pub mod rig;
+pub mod session;
 pub mod triangulate;

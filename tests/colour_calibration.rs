@@ -2,9 +2,10 @@
 #![allow(clippy::unwrap_used, reason = "tests")]
 
 use nalgebra::Vector3;
-use tremorscan::calibrate::{calibrate_colour, ColourOptions, ColourWarning, Roi, TABLE1_LEVELS};
+use tremorscan::calibrate::{calibrate_colour, ColourOptions, ColourWarning, Roi};
 use tremorscan::frame::Frame;
-use tremorscan::rig::{NoiseModel, RigConfig, SceneConfig, VirtualRig};
+use tremorscan::rig::captures::{colour_target, render_colour_captures};
+use tremorscan::rig::{NoiseModel, RigConfig, VirtualRig};
 
 const W: usize = 320;
 const H: usize = 200;
@@ -21,33 +22,14 @@ const ROI: Roi = Roi {
 /// gives `A` gray levels at the region's centre: then the calibration must return the rig's `A`.
 fn white_target_rig(noise: NoiseModel) -> VirtualRig {
     let mut config = RigConfig::paper(W, H).unwrap();
-    config.scene = SceneConfig::white_target();
     config.noise = noise;
-    config.ambient_gray = 3.0;
-    // Shading at the centre pixel, from the geometry alone: Lambert towards the projector times
-    // the inverse-square falloff.
-    let ray = config.camera.ray(W as f64 / 2.0, H as f64 / 2.0).unwrap();
-    let point = ray * (config.scene.table_distance_mm / ray.z);
-    let to_projector = config.projector_from_camera.inverse().translation_mm - point;
-    let distance = to_projector.norm();
-    let lambert = Vector3::new(0.0, 0.0, -1.0).dot(&to_projector) / distance;
-    let falloff = (config.reference_distance_mm / distance).powi(2);
-    config.projector_gain_gray = 255.0 / (lambert * falloff);
+    let config = colour_target(&config, 3.0).unwrap();
     let seq = config.default_sequence().unwrap();
     VirtualRig::new(config, seq).unwrap()
 }
 
 fn captures(rig: &VirtualRig) -> Vec<Frame> {
-    TABLE1_LEVELS
-        .iter()
-        .enumerate()
-        .map(|(i, &levels)| {
-            let mut frame = rig.blank_frame();
-            rig.render_flat(i as u64, levels, 0.0, &mut frame, None)
-                .unwrap();
-            frame
-        })
-        .collect()
+    render_colour_captures(&rig.config).unwrap()
 }
 
 fn options() -> ColourOptions {

@@ -8,8 +8,10 @@
 pub mod capture;
 pub mod colour;
 pub mod corners;
+pub mod file;
 pub mod geometric;
 pub mod local_fit;
+pub mod opencv;
 pub mod refine;
 pub mod zhang;
 
@@ -18,11 +20,13 @@ pub use colour::{
     calibrate_colour, ColourCalibration, ColourOptions, ColourWarning, Roi, TABLE1_LEVELS,
 };
 pub use corners::{find_board_corners, gray_of, BoardSpec};
+pub use file::{Calibration, CalibrationFile, ColourFile, FileError, CALIBRATION_FORMAT};
 pub use geometric::{
     calibrate_geometric, observe_view, GeometricCalibration, GeometricOptions, Uncertainty,
     ViewError, ViewObservation, MIN_VIEWS,
 };
 pub use local_fit::{fit_coordinate, LocalFit, LocalFitOptions};
+pub use opencv::import_opencv;
 
 use crate::frame::FrameError;
 
@@ -79,7 +83,7 @@ pub enum CalibrationError {
     NoSuchView { view: usize, count: usize },
     #[error("degenerate board poses for the {device}: {why}")]
     DegeneratePoses { device: Device, why: String },
-    #[error("view {view}: {source}")]
+    #[error("view {view}: the pattern frames do not decode")]
     Decode {
         view: usize,
         source: crate::decode::DecodeError,

@@ -3,10 +3,44 @@
 //! patterns with the room light dimmed, exactly what an operator records at a real rig.
 
 use super::{Chessboard, GroundTruth, RigConfig, RigError, SceneConfig, VirtualRig};
-use crate::calibrate::CalibrationCapture;
+use crate::calibrate::{CalibrationCapture, TABLE1_LEVELS};
 use crate::geometry::Pose;
 use crate::pattern::{cps_rgb, Axis, PatternSequence};
 use nalgebra::{Rotation3, Vector3};
+
+/// The rig `config` looking at a white target for the colour calibration, its projector gain set
+/// so that one projector level gives the cross-talk's `A` gray levels at the image centre (so
+/// the calibration there must return the rig's own `A`); room light `ambient_gray`.
+pub fn colour_target(config: &RigConfig, ambient_gray: f64) -> Result<RigConfig, RigError> {
+    let mut config = config.clone();
+    config.scene = SceneConfig::white_target();
+    config.ambient_gray = ambient_gray;
+    // Shading at the centre pixel from the geometry alone: Lambert towards the projector times
+    // the inverse-square falloff.
+    let (w, h) = (config.camera.width as f64, config.camera.height as f64);
+    let ray = config.camera.ray(w / 2.0, h / 2.0)?;
+    let point = ray * (config.scene.table_distance_mm / ray.z);
+    let to_projector = config.projector_from_camera.inverse().translation_mm - point;
+    let distance = to_projector.norm();
+    let lambert = Vector3::new(0.0, 0.0, -1.0).dot(&to_projector) / distance;
+    let falloff = (config.reference_distance_mm / distance).powi(2);
+    config.projector_gain_gray = 255.0 / (lambert * falloff);
+    Ok(config)
+}
+
+/// Renders the ten Table 1 captures of the colour calibration, in [`TABLE1_LEVELS`] order.
+pub fn render_colour_captures(config: &RigConfig) -> Result<Vec<crate::frame::Frame>, RigError> {
+    let rig = VirtualRig::new(config.clone(), config.default_sequence()?)?;
+    TABLE1_LEVELS
+        .iter()
+        .enumerate()
+        .map(|(i, &levels)| {
+            let mut frame = rig.blank_frame();
+            rig.render_flat(i as u64, levels, 0.0, &mut frame, None)?;
+            Ok(frame)
+        })
+        .collect()
+}
 
 /// Room light for the board image with the projector dark, gray levels on white.
 pub const ROOM_LIGHT_GRAY: f64 = 150.0;

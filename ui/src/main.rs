@@ -1,9 +1,12 @@
 //! `tremorscan`: the desktop application's binary. Until the GUI lands it runs headless
 //! subcommands over the same library: `demo` (the default) streams the virtual rig through the
 //! sliding-window decoder, `sweep` tabulates unwrap robustness against camera noise, `snapshot`
-//! writes one decoded window as PNG images.
+//! writes one decoded window as PNG images; `simulate-calibration`, `calibrate-color`,
+//! `calibrate-geometric` and `import-calibration` calibrate a rig from recorded sessions.
 
+mod calibrate_cmd;
 mod demo;
+mod simulate_calibration;
 mod snapshot;
 mod sweep;
 
@@ -29,14 +32,37 @@ enum Command {
     Sweep(sweep::SweepArgs),
     /// Decode one window of the virtual rig and write it as PNG images.
     Snapshot(snapshot::SnapshotArgs),
+    /// Write colour and chessboard calibration sessions from the virtual rig.
+    SimulateCalibration(simulate_calibration::SimulateCalibrationArgs),
+    /// Fit the colour cross-talk (A, b) from a session of the ten Table 1 captures.
+    CalibrateColor(calibrate_cmd::CalibrateColorArgs),
+    /// Calibrate camera, projector and extrinsics from chessboard sessions (one per pose).
+    CalibrateGeometric(calibrate_cmd::CalibrateGeometricArgs),
+    /// Convert an OpenCV FileStorage calibration (YAML or XML) into a tremorscan calibration file.
+    ImportCalibration(calibrate_cmd::ImportCalibrationArgs),
 }
 
-fn main() -> Result<()> {
+/// Runs the command; a failure prints one line, `error: ` and its causes, and exits with 1.
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Some(Command::Demo(args)) => demo::run(&args),
         Some(Command::Sweep(args)) => sweep::run(&args),
         Some(Command::Snapshot(args)) => snapshot::run(&args),
+        Some(Command::SimulateCalibration(args)) => simulate_calibration::run(&args),
+        Some(Command::CalibrateColor(args)) => calibrate_cmd::run_color(&args),
+        Some(Command::CalibrateGeometric(args)) => calibrate_cmd::run_geometric(&args),
+        Some(Command::ImportCalibration(args)) => calibrate_cmd::run_import(&args),
         None => demo::run(&demo::DemoArgs::default()),
     }
 }
