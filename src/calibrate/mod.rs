@@ -71,7 +71,7 @@ pub enum CalibrationError {
         found: usize,
         expected: usize,
     },
-    #[error("view {view}: the projector coordinates were decoded at only {decoded} of {expected} corners; keep the whole board inside the projected area and dim the room light for the pattern captures")]
+    #[error("view {view}: the projector coordinates were decoded at only {decoded} of {expected} corners; keep the whole board inside the projected area, dim the room light for the pattern captures, and decode with the rig's colour calibration")]
     ProjectorNotDecoded {
         view: usize,
         decoded: usize,
