@@ -74,10 +74,13 @@ pub fn find_board_corners(
         });
     }
     if gray.len() != width * height {
-        return Err(CalibrationError::CornersNotFound {
+        return Err(CalibrationError::BadCapture {
             view,
-            found: 0,
-            expected: board.corner_count(),
+            why: format!(
+                "the gray image holds {} bytes, {width}×{height} needs {}",
+                gray.len(),
+                width * height
+            ),
         });
     }
     let image = GrayImageView {

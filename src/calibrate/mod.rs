@@ -13,6 +13,7 @@ pub mod geometric;
 pub mod local_fit;
 pub mod opencv;
 pub mod refine;
+mod residuals;
 pub mod zhang;
 
 pub use capture::{coordinate_map, observe_capture, CalibrationCapture};
