@@ -17,6 +17,7 @@ pub mod decode;
 pub mod frame;
 pub mod geometry;
 mod hash;
+pub mod jsonfile;
 pub mod pattern;
 pub mod rig;
 pub mod session;

@@ -1,11 +1,12 @@
 //! The calibration file (`cps-calibration/1`, JSON, see `docs/formats.md`): camera, projector,
 //! extrinsics and colour in the same shapes as a session manifest, plus the date, the RMS
-//! errors and the rig and pattern identity. Loading checks every field and names the one it
+//! errors and the rig and pattern identity, and the colour file. Loading checks every field and names the one it
 //! rejects; it never panics.
 
 use super::geometric::GeometricCalibration;
 use crate::color::CrossTalk;
 use crate::geometry::{LensModel, Pose};
+use crate::jsonfile::{self, JsonFileError};
 use crate::session::manifest::{ColorJson, ExtrinsicsJson, FieldError, LensJson, PatternJson};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -15,16 +16,12 @@ pub const CALIBRATION_FORMAT: &str = "cps-calibration/1";
 /// Errors of reading and writing calibration files.
 #[derive(Debug, thiserror::Error)]
 pub enum FileError {
+    #[error(transparent)]
+    Json(#[from] JsonFileError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
         source: std::io::Error,
-    },
-    #[error("{path}: field `{field}`: {message}")]
-    Json {
-        path: PathBuf,
-        field: String,
-        message: String,
     },
     #[error("{path}: \"format\" is \"{found}\", expected \"{CALIBRATION_FORMAT}\"")]
     Format { path: PathBuf, found: String },
@@ -195,36 +192,13 @@ impl ColourFile {
     }
 }
 
-/// Reads JSON into `T`, naming the field that does not fit.
 fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, FileError> {
-    let text = std::fs::read_to_string(path).map_err(|source| FileError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let mut de = serde_json::Deserializer::from_str(&text);
-    serde_path_to_error::deserialize(&mut de).map_err(|e| FileError::Json {
-        path: path.to_path_buf(),
-        field: e.path().to_string(),
-        message: e.inner().to_string(),
-    })
+    Ok(jsonfile::read(path)?)
 }
 
-/// Writes `value` as pretty JSON to a temporary name, then renames it into place.
 fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), FileError> {
-    let text = serde_json::to_string_pretty(value).map_err(|e| FileError::Json {
-        path: path.to_path_buf(),
-        field: String::new(),
-        message: e.to_string(),
-    })?;
-    let tmp = path.with_extension("json.tmp");
-    let io = |p: &Path| {
-        let p = p.to_path_buf();
-        move |source| FileError::Io { path: p, source }
-    };
-    std::fs::write(&tmp, text).map_err(io(&tmp))?;
-    std::fs::rename(&tmp, path).map_err(io(path))
+    Ok(jsonfile::write_atomic(path, value)?)
 }
-
 /// The current UTC time as `YYYY-MM-DDTHH:MM:SSZ` (civil date from days since 1970, after
 /// Howard Hinnant's well-known algorithm).
 pub fn utc_now_iso8601() -> String {

@@ -23,6 +23,16 @@ pub struct CvMatrix {
     pub data: Vec<f64>,
 }
 
+impl CvMatrix {
+    fn scalar(x: f64) -> Self {
+        Self {
+            rows: 1,
+            cols: 1,
+            data: vec![x],
+        }
+    }
+}
+
 /// Parses a FileStorage text (YAML or XML) into its top-level matrices; a plain number counts
 /// as a 1×1 matrix.
 pub fn parse_file_storage(text: &str) -> Result<BTreeMap<String, CvMatrix>, (usize, String)> {
@@ -119,14 +129,7 @@ fn parse_yaml(text: &str) -> Result<BTreeMap<String, CvMatrix>, (usize, String)>
             }
             out.insert(name.clone(), finish(&name, rows, cols, data, start)?);
         } else if let Ok(x) = value.parse::<f64>() {
-            out.insert(
-                name,
-                CvMatrix {
-                    rows: 1,
-                    cols: 1,
-                    data: vec![x],
-                },
-            );
+            out.insert(name, CvMatrix::scalar(x));
         }
     }
     Ok(out)
@@ -186,14 +189,7 @@ fn parse_xml(text: &str) -> Result<BTreeMap<String, CvMatrix>, (usize, String)> 
                 .collect::<Result<Vec<_>, _>>()?;
             out.insert(name.clone(), finish(&name, rows, cols, data, line)?);
         } else if let Ok(x) = inner.trim().parse::<f64>() {
-            out.insert(
-                name,
-                CvMatrix {
-                    rows: 1,
-                    cols: 1,
-                    data: vec![x],
-                },
-            );
+            out.insert(name, CvMatrix::scalar(x));
         }
         pos = end + end_tag.len();
     }

@@ -14,6 +14,7 @@ pub use manifest::{Manifest, SessionEntry, SESSION_FORMAT};
 use crate::color::CrossTalk;
 use crate::frame::Frame;
 use crate::geometry::{LensModel, Pose};
+use crate::jsonfile::{self, JsonFileError};
 use crate::pattern::{Axis, PatternError, PatternSequence};
 use crate::triangulate::StereoModel;
 use manifest::{EntryJson, FieldError, FrameJson};
@@ -27,12 +28,8 @@ pub enum SessionError {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("{path}: field `{field}`: {message}")]
-    Json {
-        path: PathBuf,
-        field: String,
-        message: String,
-    },
+    #[error(transparent)]
+    Json(#[from] JsonFileError),
     #[error("{path}: \"format\" is \"{found}\", expected \"{SESSION_FORMAT}\"")]
     Format { path: PathBuf, found: String },
     #[error("session.json: {0}")]
@@ -71,17 +68,7 @@ impl Session {
     pub fn open(dir: impl AsRef<Path>) -> Result<Self, SessionError> {
         let dir = dir.as_ref().to_path_buf();
         let path = dir.join("session.json");
-        let text = std::fs::read_to_string(&path).map_err(|source| SessionError::Io {
-            path: path.clone(),
-            source,
-        })?;
-        let mut de = serde_json::Deserializer::from_str(&text);
-        let manifest: Manifest =
-            serde_path_to_error::deserialize(&mut de).map_err(|e| SessionError::Json {
-                path: path.clone(),
-                field: e.path().to_string(),
-                message: e.inner().to_string(),
-            })?;
+        let manifest: Manifest = jsonfile::read(&path)?;
         if manifest.format != SESSION_FORMAT {
             return Err(SessionError::Format {
                 path,
@@ -324,15 +311,10 @@ pub fn write_session(
             pattern_index: frame.pattern_index,
         });
     }
-    let text = serde_json::to_string_pretty(&manifest).map_err(|e| SessionError::Json {
-        path: dir.join("session.json"),
-        field: String::new(),
-        message: e.to_string(),
-    })?;
-    let tmp = dir.join("session.json.tmp");
-    std::fs::write(&tmp, text).map_err(io(&tmp))?;
-    let path = dir.join("session.json");
-    std::fs::rename(&tmp, &path).map_err(io(&path))
+    Ok(jsonfile::write_atomic(
+        &dir.join("session.json"),
+        &manifest,
+    )?)
 }
 
 /// The manifest entries of `entries` within a pattern section of `axis` and `x_max`.
