@@ -14,6 +14,7 @@
 pub mod calibrate;
 pub mod color;
 pub mod decode;
+pub mod export;
 pub mod frame;
 pub mod geometry;
 mod hash;

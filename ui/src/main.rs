@@ -6,6 +6,8 @@
 
 mod calibrate_cmd;
 mod demo;
+mod progress;
+mod session_cmd;
 mod simulate_calibration;
 mod snapshot;
 mod sweep;
@@ -32,6 +34,12 @@ enum Command {
     Sweep(sweep::SweepArgs),
     /// Decode one window of the virtual rig and write it as PNG images.
     Snapshot(snapshot::SnapshotArgs),
+    /// Write a measurement session (cps-session/1) of the trembling hand from the virtual rig.
+    Simulate(session_cmd::SimulateArgs),
+    /// Decode and triangulate the window ending at one frame of a session; export PLY/TIFF/PNG.
+    Decode(session_cmd::DecodeArgs),
+    /// Summarise a session and check every frame.
+    Info(session_cmd::InfoArgs),
     /// Write colour and chessboard calibration sessions from the virtual rig.
     SimulateCalibration(simulate_calibration::SimulateCalibrationArgs),
     /// Fit the colour cross-talk (A, b) from a session of the ten Table 1 captures.
@@ -59,6 +67,9 @@ fn run() -> Result<()> {
         Some(Command::Demo(args)) => demo::run(&args),
         Some(Command::Sweep(args)) => sweep::run(&args),
         Some(Command::Snapshot(args)) => snapshot::run(&args),
+        Some(Command::Simulate(args)) => session_cmd::run_simulate(&args),
+        Some(Command::Decode(args)) => session_cmd::run_decode(&args),
+        Some(Command::Info(args)) => session_cmd::run_info(&args),
         Some(Command::SimulateCalibration(args)) => simulate_calibration::run(&args),
         Some(Command::CalibrateColor(args)) => calibrate_cmd::run_color(&args),
         Some(Command::CalibrateGeometric(args)) => calibrate_cmd::run_geometric(&args),

@@ -1,0 +1,290 @@
+//! `tremorscan simulate`, `decode` and `info`: sessions from the virtual rig, one decoded window
+//! of a session exported as PLY / float TIFF / PNG, and a session's summary and validation.
+
+use crate::progress::Progress;
+use anyhow::{bail, ensure, Context, Result};
+use std::path::PathBuf;
+use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
+use tremorscan::export::{depth_mm, write_colour_png, write_depth_tiff, write_ply};
+use tremorscan::rig::{GroundTruth, RigConfig, Tremor, VirtualRig};
+use tremorscan::session::frames::write_png;
+use tremorscan::session::manifest::{ColorJson, ExtrinsicsJson, FrameJson, LensJson, PatternJson};
+use tremorscan::session::{Manifest, Session, SessionEntry, SESSION_FORMAT};
+use tremorscan::triangulate::{PointCloud, Triangulator};
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct SimulateArgs {
+    /// Folder to write the session into (created; must not hold a session already).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 121)]
+    pub frames: usize,
+    #[arg(long, default_value_t = 640)]
+    pub width: usize,
+    #[arg(long, default_value_t = 400)]
+    pub height: usize,
+    /// Tremor frequency, Hz.
+    #[arg(long, default_value_t = 5.3)]
+    pub tremor_hz: f64,
+    /// Peak fingertip displacement along the optical axis, mm.
+    #[arg(long, default_value_t = 2.0)]
+    pub amplitude_mm: f64,
+    /// Seed of the camera noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Also write the exact depth of every frame as `truth/NNNNNN-depth.tiff` (mm, NaN off
+    /// surfaces).
+    #[arg(long)]
+    pub truth: bool,
+}
+
+/// The manifest of a measurement session recorded with `rig`, frames not yet listed.
+pub fn rig_manifest(rig: &VirtualRig) -> Manifest {
+    let seq = &rig.sequence;
+    let entries: Vec<SessionEntry> = seq
+        .entries
+        .iter()
+        .map(|&entry| SessionEntry::Coding {
+            axis: seq.axis,
+            x_max: seq.x_max,
+            entry,
+        })
+        .collect();
+    Manifest {
+        format: SESSION_FORMAT.to_string(),
+        pattern: PatternJson {
+            x_max: seq.x_max,
+            axis: seq.axis.into(),
+            projector_bits: seq.projector_bits,
+            sequence: tremorscan::session::entries_json(&entries, seq.axis, seq.x_max),
+        },
+        color: Some(ColorJson::from_cross_talk(&rig.config.cross_talk)),
+        camera: LensJson::from_lens(&rig.config.camera),
+        projector: LensJson::from_lens(&rig.config.projector),
+        extrinsics: Some(ExtrinsicsJson::from_pose(&rig.config.projector_from_camera)),
+        frames: Vec::new(),
+    }
+}
+
+pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
+    ensure!(args.frames > 0, "--frames must be at least 1");
+    ensure!(
+        args.tremor_hz.is_finite() && args.tremor_hz >= 0.0,
+        "--tremor-hz must be ≥ 0"
+    );
+    ensure!(
+        args.amplitude_mm.is_finite() && args.amplitude_mm >= 0.0,
+        "--amplitude-mm must be ≥ 0"
+    );
+    ensure!(
+        !args.out.join("session.json").exists(),
+        "{} already holds a session; choose another folder",
+        args.out.display()
+    );
+    let mut config = RigConfig::paper(args.width, args.height).context("rig configuration")?;
+    config.seed = args.seed;
+    if let Some(tremor) = config.scene.hand.as_mut() {
+        *tremor = Tremor {
+            frequency_hz: args.tremor_hz,
+            tip_amplitude_mm: args.amplitude_mm,
+            ..*tremor
+        };
+    }
+    let seq = config.default_sequence()?;
+    let rig = VirtualRig::new(config, seq)?;
+    let frames_dir = args.out.join("frames");
+    std::fs::create_dir_all(&frames_dir)
+        .with_context(|| format!("creating {}", frames_dir.display()))?;
+    if args.truth {
+        std::fs::create_dir_all(args.out.join("truth"))?;
+    }
+    let mut manifest = rig_manifest(&rig);
+    let mut frame = rig.blank_frame();
+    let mut truth = GroundTruth::default();
+    let mut progress = Progress::new("simulate", args.frames);
+    for i in 0..args.frames {
+        rig.render(i as u64, &mut frame, args.truth.then_some(&mut truth))?;
+        let file = format!("frames/{i:06}.png");
+        write_png(&args.out.join(&file), &frame)?;
+        if args.truth {
+            let path = args.out.join(format!("truth/{i:06}-depth.tiff"));
+            write_depth_tiff(&path, rig.width(), rig.height(), &truth.depth_mm)?;
+        }
+        manifest.frames.push(FrameJson {
+            file,
+            time_s: frame.time_s,
+            pattern_index: frame.pattern_index,
+        });
+        progress.step(i + 1);
+    }
+    progress.finish();
+    tremorscan::jsonfile::write_atomic(&args.out.join("session.json"), &manifest)?;
+    println!(
+        "wrote {}: {} frames of {}×{} at {} FPS, tremor {} Hz, {} mm",
+        args.out.display(),
+        args.frames,
+        rig.width(),
+        rig.height(),
+        rig.config.fps,
+        args.tremor_hz,
+        args.amplitude_mm
+    );
+    Ok(())
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct DecodeArgs {
+    pub session: PathBuf,
+    /// The frame that ends the window to decode.
+    #[arg(long)]
+    pub frame: usize,
+    /// Binary PLY of the valid points (mm, camera frame, with colour).
+    #[arg(long)]
+    pub ply: Option<PathBuf>,
+    /// 32-bit float TIFF of camera-frame z in mm, NaN where invalid.
+    #[arg(long)]
+    pub depth: Option<PathBuf>,
+    /// PNG of the decoded scene colour.
+    #[arg(long)]
+    pub color: Option<PathBuf>,
+}
+
+/// Decodes the window of `session` ending at frame `last` and triangulates it.
+pub fn decode_window(session: &Session, last: usize) -> Result<PointCloud> {
+    let sequence = session.sequence()?;
+    let len = sequence.entries.len();
+    ensure!(
+        last < session.frame_count(),
+        "frame {last} does not exist (the session has {} frames)",
+        session.frame_count()
+    );
+    ensure!(
+        last + 1 >= len,
+        "frame {last}: a window needs {len} frames, so the first one ends at frame {}",
+        len - 1
+    );
+    let cross_talk = session
+        .cross_talk()?
+        .unwrap_or_else(tremorscan::color::CrossTalk::identity);
+    let mut decoder = SlidingDecoder::new(sequence, cross_talk, DecodeParams::default())?;
+    let mut decoded = false;
+    for index in last + 1 - len..=last {
+        let frame = session.load_frame(index)?;
+        match decoder.push(&frame)? {
+            WindowOutcome::Decoded(_) => decoded = true,
+            WindowOutcome::Filling { .. } => {}
+            WindowOutcome::Unsolvable { order } => bail!(
+                "the window ending at frame {last} shows patterns {order:?}, which do not make a solvable window"
+            ),
+            WindowOutcome::TooSpread { span_s, max_span_s } => bail!(
+                "the window ending at frame {last} spans {span_s:.4} s, more than {max_span_s:.4} s"
+            ),
+        }
+    }
+    let out = decoder
+        .output()
+        .filter(|_| decoded)
+        .context("the window did not decode")?;
+    let triangulator = Triangulator::new(session.stereo_model()?)?;
+    let mut cloud = PointCloud::default();
+    triangulator.triangulate(out, &mut cloud)?;
+    Ok(cloud)
+}
+
+pub fn run_decode(args: &DecodeArgs) -> Result<()> {
+    let session = Session::open(&args.session)?;
+    let cloud = decode_window(&session, args.frame)?;
+    let valid = cloud.valid_count();
+    let mut depths: Vec<f32> = depth_mm(&cloud)
+        .into_iter()
+        .filter(|d| d.is_finite())
+        .collect();
+    depths.sort_by(f32::total_cmp);
+    println!(
+        "frame {}: window at t = {:.4} s, {valid} valid points ({:.1} % of {}×{}), median depth {:.1} mm",
+        args.frame,
+        cloud.time_s,
+        100.0 * valid as f64 / (cloud.width * cloud.height) as f64,
+        cloud.width,
+        cloud.height,
+        depths.get(depths.len() / 2).copied().unwrap_or(f32::NAN)
+    );
+    if let Some(path) = &args.ply {
+        let n = write_ply(path, &cloud)?;
+        println!("wrote {} ({n} points)", path.display());
+    }
+    if let Some(path) = &args.depth {
+        write_depth_tiff(path, cloud.width, cloud.height, &depth_mm(&cloud))?;
+        println!("wrote {}", path.display());
+    }
+    if let Some(path) = &args.color {
+        write_colour_png(path, &cloud)?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct InfoArgs {
+    pub session: PathBuf,
+}
+
+pub fn run_info(args: &InfoArgs) -> Result<()> {
+    let session = Session::open(&args.session)?;
+    let m = &session.manifest;
+    let (w, h) = session.camera_size();
+    println!("session {}", args.session.display());
+    println!("  format     {}", m.format);
+    println!(
+        "  camera     {w}×{h}{}",
+        if m.camera.k.is_some() {
+            ""
+        } else {
+            " (not calibrated)"
+        }
+    );
+    println!("  projector  {}×{}", m.projector.width, m.projector.height);
+    let coding = session
+        .entries
+        .iter()
+        .filter(|e| matches!(e, SessionEntry::Coding { .. }))
+        .count();
+    println!(
+        "  pattern    {} entries ({coding} coding, {} constant), axis {:?}, {} bit",
+        session.entries.len(),
+        session.entries.len() - coding,
+        m.pattern.axis,
+        m.pattern.projector_bits
+    );
+    let times: Vec<f64> = m.frames.iter().map(|f| f.time_s).collect();
+    let span = times.last().copied().unwrap_or(0.0) - times.first().copied().unwrap_or(0.0);
+    let rate = if span > 0.0 {
+        (times.len() - 1) as f64 / span
+    } else {
+        0.0
+    };
+    println!(
+        "  frames     {} over {span:.3} s ({rate:.1} FPS)",
+        m.frames.len()
+    );
+    let backwards = times.windows(2).filter(|t| t[1] <= t[0]).count();
+    if backwards > 0 {
+        println!("  warning: {backwards} frame(s) not later than the one before");
+    }
+    let measurement = session
+        .stereo_model()
+        .map(|_| ())
+        .and(session.sequence().map(|_| ()));
+    match &measurement {
+        Ok(()) => println!("  use        measurement (calibrated, one coding axis)"),
+        Err(e) => println!("  use        calibration only: {e}"),
+    }
+    let mut progress = Progress::new("checking frames", m.frames.len());
+    for i in 0..m.frames.len() {
+        session.load_frame(i)?;
+        progress.step(i + 1);
+    }
+    progress.finish();
+    println!("verdict: VALID ({} frames read)", m.frames.len());
+    Ok(())
+}
