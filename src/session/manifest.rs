@@ -24,7 +24,45 @@ pub struct Manifest {
     pub projector: LensJson,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub extrinsics: Option<ExtrinsicsJson>,
+    /// Listed frames (image files). A live recording lists none and names its container in
+    /// `recording` instead.
+    #[serde(default)]
     pub frames: Vec<FrameJson>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recording: Option<RecordingJson>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trial: Option<TrialJson>,
+}
+
+/// The container a live recording wrote its frames to (`frames.cpsr`, see `container`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordingJson {
+    pub file: String,
+}
+
+/// What a clinical trial recorded: who, which hand, under what condition, and the control points.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrialJson {
+    #[serde(default)]
+    pub subject_id: String,
+    /// `left` or `right` (free text is kept as given).
+    #[serde(default)]
+    pub hand: String,
+    /// E.g. `rest`, `posture`, `medication off`.
+    #[serde(default)]
+    pub condition: String,
+    #[serde(default)]
+    pub operator_notes: String,
+    #[serde(default)]
+    pub control_points: Vec<ControlPointJson>,
+}
+
+/// A control point, by the camera pixel it started at.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ControlPointJson {
+    pub name: String,
+    pub u: f64,
+    pub v: f64,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -6,10 +6,13 @@
 //! [`Session::open`] reads and checks the manifest and that every frame file exists; frames
 //! are read one at a time with [`Session::load_frame`]. [`write_session`] writes the folder.
 
+pub mod container;
 pub mod frames;
 pub mod manifest;
+pub mod record;
 
-pub use manifest::{Manifest, SessionEntry, SESSION_FORMAT};
+pub use manifest::{Manifest, SessionEntry, TrialJson, SESSION_FORMAT};
+pub use record::Recorder;
 
 use crate::color::CrossTalk;
 use crate::frame::Frame;
@@ -50,6 +53,11 @@ pub enum SessionError {
         expected_width: usize,
         expected_height: usize,
     },
+    #[error("{path}: {source}")]
+    Container {
+        path: PathBuf,
+        source: container::ContainerError,
+    },
     #[error("frame {index} does not exist (the session has {count} frames)")]
     NoSuchFrame { index: usize, count: usize },
 }
@@ -61,6 +69,17 @@ pub struct Session {
     pub manifest: Manifest,
     /// The checked sequence entries.
     pub entries: Vec<SessionEntry>,
+    /// For a live recording: its container and the complete records found in it.
+    pub container: Option<ContainerFrames>,
+}
+
+/// The frames of a recording container.
+#[derive(Debug, Clone)]
+pub struct ContainerFrames {
+    pub path: PathBuf,
+    pub records: Vec<container::RecordInfo>,
+    /// Why the scan stopped early, if the recording was cut off (crash, full disk).
+    pub cut_off: Option<String>,
 }
 
 impl Session {
@@ -68,7 +87,36 @@ impl Session {
     pub fn open(dir: impl AsRef<Path>) -> Result<Self, SessionError> {
         let dir = dir.as_ref().to_path_buf();
         let path = dir.join("session.json");
-        let manifest: Manifest = jsonfile::read(&path)?;
+        let mut manifest: Manifest = jsonfile::read(&path)?;
+        let container = match &manifest.recording {
+            Some(recording) => {
+                let cpath = dir.join(&recording.file);
+                let mut file = std::fs::File::open(&cpath).map_err(|source| SessionError::Io {
+                    path: cpath.clone(),
+                    source,
+                })?;
+                let index =
+                    container::scan(&mut file).map_err(|source| SessionError::Container {
+                        path: cpath.clone(),
+                        source,
+                    })?;
+                manifest.frames = index
+                    .records
+                    .iter()
+                    .map(|r| FrameJson {
+                        file: recording.file.clone(),
+                        time_s: r.time_s,
+                        pattern_index: r.pattern_index,
+                    })
+                    .collect();
+                Some(ContainerFrames {
+                    path: cpath,
+                    records: index.records,
+                    cut_off: index.cut_off,
+                })
+            }
+            None => None,
+        };
         if manifest.format != SESSION_FORMAT {
             return Err(SessionError::Format {
                 path,
@@ -143,6 +191,7 @@ impl Session {
             dir,
             manifest,
             entries,
+            container,
         };
         // Whatever calibration is present must be valid, even where it is optional.
         if session.manifest.camera.k.is_some() || session.manifest.camera.dist.is_some() {
@@ -280,9 +329,41 @@ impl Session {
                 index,
                 count: self.frame_count(),
             })?;
-        let mut frame = frames::read_frame(&self.dir.join(&entry.file), self.camera_size())?;
+        let mut frame = match &self.container {
+            Some(c) => self.container_frame(c, index)?,
+            None => frames::read_frame(&self.dir.join(&entry.file), self.camera_size())?,
+        };
         frame.time_s = entry.time_s;
         frame.pattern_index = entry.pattern_index;
+        Ok(frame)
+    }
+}
+
+impl Session {
+    fn container_frame(&self, c: &ContainerFrames, index: usize) -> Result<Frame, SessionError> {
+        let err = |source| SessionError::Container {
+            path: c.path.clone(),
+            source,
+        };
+        let info = c.records.get(index).ok_or(SessionError::NoSuchFrame {
+            index,
+            count: c.records.len(),
+        })?;
+        let mut file = std::fs::File::open(&c.path).map_err(|source| SessionError::Io {
+            path: c.path.clone(),
+            source,
+        })?;
+        let frame = container::read_frame(&mut file, index, info).map_err(err)?;
+        let (w, h) = self.camera_size();
+        if (frame.width, frame.height) != (w, h) {
+            return Err(SessionError::FrameSize {
+                file: c.path.join(format!("#{index}")),
+                width: frame.width,
+                height: frame.height,
+                expected_width: w,
+                expected_height: h,
+            });
+        }
         Ok(frame)
     }
 }

@@ -63,6 +63,8 @@ pub fn rig_manifest(rig: &VirtualRig) -> Manifest {
         projector: LensJson::from_lens(&rig.config.projector),
         extrinsics: Some(ExtrinsicsJson::from_pose(&rig.config.projector_from_camera)),
         frames: Vec::new(),
+        recording: None,
+        trial: None,
     }
 }
 

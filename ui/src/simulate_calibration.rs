@@ -49,6 +49,8 @@ fn manifest(config: &RigConfig, entries: &[SessionEntry], pattern: &PatternSeque
         projector: bare(config.projector.width, config.projector.height),
         extrinsics: None,
         frames: Vec::new(),
+        recording: None,
+        trial: None,
     }
 }
 
