@@ -14,12 +14,14 @@
 pub mod calibrate;
 pub mod color;
 pub mod decode;
+pub mod device;
 pub mod export;
 pub mod frame;
 pub mod geometry;
 mod hash;
 pub mod jsonfile;
 pub mod pattern;
+pub mod pipeline;
 pub mod rig;
 pub mod session;
 pub mod triangulate;
