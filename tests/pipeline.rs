@@ -67,12 +67,13 @@ fn rendered(rig: &VirtualRig, n: u64) -> Vec<Frame> {
         .collect()
 }
 
-/// Frames from memory, as fast as they are asked for, after `go` is set.
+/// Frames from memory after `go` is set, `interval` apart (zero: as fast as asked for).
 struct MemoryCamera {
     frames: Vec<Frame>,
     repeat: usize,
     next: usize,
     go: Arc<AtomicBool>,
+    interval: Duration,
 }
 
 impl Camera for MemoryCamera {
@@ -94,6 +95,7 @@ impl Camera for MemoryCamera {
                 frames: self.next as u64,
             });
         }
+        std::thread::sleep(self.interval);
         let src = &self.frames[self.next % self.frames.len()];
         frame.clone_from(src);
         // Keep time and pattern running across repeats.
@@ -168,6 +170,9 @@ fn a_real_time_stage_that_falls_behind_drops_and_counts() {
         repeat: 100,
         next: 0,
         go,
+        // 2000 frames/s for 150 ms: faster than a 320×200 window decodes (~3 ms), and long
+        // enough for the decoder to run many windows.
+        interval: Duration::from_micros(500),
     };
     // The default real-time queue keeps the newest three frames: consecutive ones, so some
     // windows still decode while most frames are dropped.
@@ -207,6 +212,7 @@ fn recording_keeps_every_frame_and_an_overrun_stops_it_loudly() {
         repeat: 5,
         next: 0,
         go: Arc::clone(&go),
+        interval: Duration::ZERO,
     };
     let config = PipelineConfig {
         decode_policy: DecodePolicy::Lossless,
@@ -243,6 +249,7 @@ fn recording_keeps_every_frame_and_an_overrun_stops_it_loudly() {
         repeat: 20,
         next: 0,
         go: Arc::clone(&go),
+        interval: Duration::ZERO,
     };
     let config = PipelineConfig {
         decode_policy: DecodePolicy::RealTime,
