@@ -81,6 +81,9 @@ pub struct PipelineConfig {
     /// Clouds kept for [`Pipeline::next_for_consumer`] (0: no consumer queue). Each holds a
     /// full cloud (44 MB at 1920×1200), so keep it small; beyond it the oldest are dropped.
     pub consumer_queue: usize,
+    /// Publish every result to the display slot ([`Pipeline::latest`]); headless runs turn it
+    /// off so no display drops are counted.
+    pub display: bool,
     pub decode_params: DecodeParams,
 }
 
@@ -91,6 +94,7 @@ impl Default for PipelineConfig {
             decode_queue: 3,
             recorder_queue: 121,
             consumer_queue: 0,
+            display: true,
             decode_params: DecodeParams::default(),
         }
     }
@@ -210,7 +214,9 @@ impl Pipeline {
             let (shared, queue) = (Arc::clone(&shared), Arc::clone(&decode_queue));
             spawn(
                 "decode",
-                Box::new(move || stages::decode_loop(&shared, &queue, decoder, &triangulator)),
+                Box::new(move || {
+                    stages::decode_loop(&shared, &queue, decoder, &triangulator, config.display)
+                }),
             )?
         };
         let capture = {

@@ -91,6 +91,7 @@ pub(super) fn decode_loop(
     queue: &StageQueue<Arc<CapturedFrame>>,
     mut decoder: SlidingDecoder,
     triangulator: &Triangulator,
+    display: bool,
 ) {
     let mut spare: Vec<Arc<CloudFrame>> = Vec::new();
     while let Some(item) = queue.pop() {
@@ -130,7 +131,9 @@ pub(super) fn decode_loop(
         let now = Instant::now();
         slot.latency = now - item.arrived;
         shared.metrics.window_decoded(now, slot.latency);
-        shared.latest.put(Arc::clone(&result));
+        if display {
+            shared.latest.put(Arc::clone(&result));
+        }
         if let Some(consumers) = &shared.consumers {
             consumers.push_newest(Arc::clone(&result));
         }

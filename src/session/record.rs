@@ -12,7 +12,6 @@ use super::SessionError;
 use crate::frame::Frame;
 use crate::jsonfile;
 use std::fs::File;
-use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
 /// Name of the container inside the session folder.
@@ -22,7 +21,9 @@ pub const CONTAINER_FILE: &str = "frames.cpsr";
 pub struct Recorder {
     dir: PathBuf,
     manifest: Manifest,
-    writer: ContainerWriter<BufWriter<File>>,
+    /// Unbuffered: each record goes to the kernel in one write as soon as it is built, so a
+    /// crash of this process loses no frame that `write_frame` accepted.
+    writer: ContainerWriter<File>,
 }
 
 /// What a finished recording holds.
@@ -57,13 +58,10 @@ impl Recorder {
         std::fs::create_dir_all(dir).map_err(io(dir))?;
         let container_path = dir.join(CONTAINER_FILE);
         let file = File::create(&container_path).map_err(io(&container_path))?;
-        let writer =
-            ContainerWriter::new(BufWriter::with_capacity(1 << 22, file)).map_err(|source| {
-                SessionError::Container {
-                    path: container_path.clone(),
-                    source,
-                }
-            })?;
+        let writer = ContainerWriter::new(file).map_err(|source| SessionError::Container {
+            path: container_path.clone(),
+            source,
+        })?;
         manifest.frames.clear();
         manifest.recording = Some(RecordingJson {
             file: CONTAINER_FILE.to_string(),
@@ -126,14 +124,7 @@ impl Recorder {
             bytes: self.writer.bytes(),
         };
         let path = self.dir.join(CONTAINER_FILE);
-        let file = self
-            .writer
-            .into_inner()
-            .into_inner()
-            .map_err(|e| SessionError::Io {
-                path: path.clone(),
-                source: e.into_error(),
-            })?;
+        let file = self.writer.into_inner();
         file.sync_all()
             .map_err(|source| SessionError::Io { path, source })?;
         Ok(summary)

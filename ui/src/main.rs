@@ -6,6 +6,7 @@
 
 mod calibrate_cmd;
 mod demo;
+mod pipeline_cmd;
 mod progress;
 mod session_cmd;
 mod simulate_calibration;
@@ -40,6 +41,10 @@ enum Command {
     Decode(session_cmd::DecodeArgs),
     /// Summarise a session and check every frame.
     Info(session_cmd::InfoArgs),
+    /// Record a trial from the virtual rig through the live pipeline (frames.cpsr container).
+    Record(pipeline_cmd::RecordArgs),
+    /// Play a session through the pipeline (capture, decode, triangulate) and print metrics.
+    Replay(pipeline_cmd::ReplayArgs),
     /// Write colour and chessboard calibration sessions from the virtual rig.
     SimulateCalibration(simulate_calibration::SimulateCalibrationArgs),
     /// Fit the colour cross-talk (A, b) from a session of the ten Table 1 captures.
@@ -70,6 +75,8 @@ fn run() -> Result<()> {
         Some(Command::Simulate(args)) => session_cmd::run_simulate(&args),
         Some(Command::Decode(args)) => session_cmd::run_decode(&args),
         Some(Command::Info(args)) => session_cmd::run_info(&args),
+        Some(Command::Record(args)) => pipeline_cmd::run_record(&args),
+        Some(Command::Replay(args)) => pipeline_cmd::run_replay(&args),
         Some(Command::SimulateCalibration(args)) => simulate_calibration::run(&args),
         Some(Command::CalibrateColor(args)) => calibrate_cmd::run_color(&args),
         Some(Command::CalibrateGeometric(args)) => calibrate_cmd::run_geometric(&args),

@@ -258,6 +258,26 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
         m.pattern.axis,
         m.pattern.projector_bits
     );
+    if let Some(c) = &session.container {
+        println!(
+            "  recording  {} ({} complete frames{})",
+            c.path.display(),
+            c.records.len(),
+            c.cut_off
+                .as_ref()
+                .map_or(String::new(), |why| format!("; cut off: {why}"))
+        );
+    }
+    if let Some(t) = &m.trial {
+        println!(
+            "  trial      subject {:?}, hand {:?}, condition {:?}, {} control point(s); notes: {:?}",
+            t.subject_id,
+            t.hand,
+            t.condition,
+            t.control_points.len(),
+            t.operator_notes
+        );
+    }
     let times: Vec<f64> = m.frames.iter().map(|f| f.time_s).collect();
     let span = times.last().copied().unwrap_or(0.0) - times.first().copied().unwrap_or(0.0);
     let rate = if span > 0.0 {
