@@ -176,11 +176,9 @@ pub fn run_record(args: &RecordArgs) -> Result<()> {
         pipeline.camera_name()
     );
     let mut fine = run_for(&pipeline, Some(args.seconds));
-    if let Some(result) = pipeline.stop_recording() {
-        if let Err(e) = result {
-            fine = false;
-            println!("RECORDING FAILED: {e}");
-        }
+    if let Some(Err(e)) = pipeline.stop_recording() {
+        fine = false;
+        println!("RECORDING FAILED: {e}");
     }
     fine &= report_events(&pipeline);
     let m = pipeline.stop();
