@@ -98,6 +98,19 @@ fn a_recording_reads_back_bit_for_bit_with_its_trial() {
     assert_eq!(session.sequence().unwrap(), rig.sequence);
     // Never larger than the raw frames plus a 48-byte header each (noisy frames are stored).
     assert!(summary.bytes <= 8 + 9 * (160 * 100 * 3 + 48), "{summary:?}");
+    // Control points set in replay are saved with the session; the frames stay as they were.
+    let mut session = session;
+    let mut t = trial();
+    t.control_points.push(ControlPointJson {
+        name: "thumb".into(),
+        u: 30.0,
+        v: 60.0,
+    });
+    session.save_trial(t.clone()).unwrap();
+    let reopened = Session::open(&dir).unwrap();
+    assert_eq!(reopened.manifest.trial, Some(t));
+    assert_eq!(reopened.frame_count(), 9);
+    assert_eq!(&reopened.load_frame(8).unwrap(), &recorded[8]);
     // A second recording into the same folder is refused.
     assert!(Recorder::create(&dir, manifest(&rig), trial()).is_err());
     let _ = std::fs::remove_dir_all(&dir);

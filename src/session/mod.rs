@@ -340,6 +340,20 @@ impl Session {
 }
 
 impl Session {
+    /// Replaces the trial metadata (subject, notes, control points) and rewrites `session.json`
+    /// atomically; the frames are untouched.
+    pub fn save_trial(&mut self, trial: TrialJson) -> Result<(), SessionError> {
+        let mut manifest = self.manifest.clone();
+        manifest.trial = Some(trial.clone());
+        if manifest.recording.is_some() {
+            // A recording's frames live in its container, not in the manifest.
+            manifest.frames.clear();
+        }
+        jsonfile::write_atomic(&self.dir.join("session.json"), &manifest)?;
+        self.manifest.trial = Some(trial);
+        Ok(())
+    }
+
     fn container_frame(&self, c: &ContainerFrames, index: usize) -> Result<Frame, SessionError> {
         let err = |source| SessionError::Container {
             path: c.path.clone(),
