@@ -7,38 +7,10 @@
 
 use std::time::Instant;
 use tremorscan::rig::{RigConfig, VirtualRig};
-use tremorscan::session::manifest::{LensJson, PatternJson};
-use tremorscan::session::{
-    entries_json, Manifest, Recorder, SessionEntry, TrialJson, SESSION_FORMAT,
-};
+use tremorscan::session::{Manifest, Recorder, TrialJson};
 
 fn manifest(rig: &VirtualRig) -> Manifest {
-    let seq = &rig.sequence;
-    let entries: Vec<SessionEntry> = seq
-        .entries
-        .iter()
-        .map(|&entry| SessionEntry::Coding {
-            axis: seq.axis,
-            x_max: seq.x_max,
-            entry,
-        })
-        .collect();
-    Manifest {
-        format: SESSION_FORMAT.into(),
-        pattern: PatternJson {
-            x_max: seq.x_max,
-            axis: seq.axis.into(),
-            projector_bits: seq.projector_bits,
-            sequence: entries_json(&entries, seq.axis, seq.x_max),
-        },
-        color: None,
-        camera: LensJson::from_lens(&rig.config.camera),
-        projector: LensJson::from_lens(&rig.config.projector),
-        extrinsics: None,
-        frames: Vec::new(),
-        recording: None,
-        trial: None,
-    }
+    rig.session_manifest()
 }
 
 fn main() {

@@ -11,10 +11,7 @@ use tremorscan::device::{Camera, DeviceError, Grabbed, Pacing, ReplayCamera};
 use tremorscan::frame::Frame;
 use tremorscan::pipeline::{DecodePolicy, Pipeline, PipelineConfig, PipelineEvent};
 use tremorscan::rig::{RigConfig, VirtualRig};
-use tremorscan::session::manifest::{ColorJson, ExtrinsicsJson, LensJson, PatternJson};
-use tremorscan::session::{
-    entries_json, write_session, Manifest, Session, SessionEntry, TrialJson, SESSION_FORMAT,
-};
+use tremorscan::session::{write_session, Manifest, Session, TrialJson};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("tremorscan-pipe-{}-{name}", std::process::id()));
@@ -29,32 +26,7 @@ fn rig(w: usize, h: usize) -> VirtualRig {
 }
 
 fn manifest(rig: &VirtualRig) -> Manifest {
-    let seq = &rig.sequence;
-    let entries: Vec<SessionEntry> = seq
-        .entries
-        .iter()
-        .map(|&entry| SessionEntry::Coding {
-            axis: seq.axis,
-            x_max: seq.x_max,
-            entry,
-        })
-        .collect();
-    Manifest {
-        format: SESSION_FORMAT.into(),
-        pattern: PatternJson {
-            x_max: seq.x_max,
-            axis: seq.axis.into(),
-            projector_bits: seq.projector_bits,
-            sequence: entries_json(&entries, seq.axis, seq.x_max),
-        },
-        color: Some(ColorJson::from_cross_talk(&rig.config.cross_talk)),
-        camera: LensJson::from_lens(&rig.config.camera),
-        projector: LensJson::from_lens(&rig.config.projector),
-        extrinsics: Some(ExtrinsicsJson::from_pose(&rig.config.projector_from_camera)),
-        frames: Vec::new(),
-        recording: None,
-        trial: None,
-    }
+    rig.session_manifest()
 }
 
 fn rendered(rig: &VirtualRig, n: u64) -> Vec<Frame> {

@@ -5,12 +5,8 @@
 use std::path::PathBuf;
 use tremorscan::frame::Frame;
 use tremorscan::rig::{RigConfig, VirtualRig};
-use tremorscan::session::manifest::{
-    ColorJson, ControlPointJson, ExtrinsicsJson, LensJson, PatternJson,
-};
-use tremorscan::session::{
-    entries_json, Manifest, Recorder, Session, SessionEntry, TrialJson, SESSION_FORMAT,
-};
+use tremorscan::session::manifest::ControlPointJson;
+use tremorscan::session::{Manifest, Recorder, Session, TrialJson};
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("tremorscan-rec-{}-{name}", std::process::id()));
@@ -25,32 +21,7 @@ fn rig() -> VirtualRig {
 }
 
 fn manifest(rig: &VirtualRig) -> Manifest {
-    let seq = &rig.sequence;
-    let entries: Vec<SessionEntry> = seq
-        .entries
-        .iter()
-        .map(|&entry| SessionEntry::Coding {
-            axis: seq.axis,
-            x_max: seq.x_max,
-            entry,
-        })
-        .collect();
-    Manifest {
-        format: SESSION_FORMAT.into(),
-        pattern: PatternJson {
-            x_max: seq.x_max,
-            axis: seq.axis.into(),
-            projector_bits: seq.projector_bits,
-            sequence: entries_json(&entries, seq.axis, seq.x_max),
-        },
-        color: Some(ColorJson::from_cross_talk(&rig.config.cross_talk)),
-        camera: LensJson::from_lens(&rig.config.camera),
-        projector: LensJson::from_lens(&rig.config.projector),
-        extrinsics: Some(ExtrinsicsJson::from_pose(&rig.config.projector_from_camera)),
-        frames: Vec::new(),
-        recording: None,
-        trial: None,
-    }
+    rig.session_manifest()
 }
 
 fn trial() -> TrialJson {

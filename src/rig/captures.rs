@@ -1,11 +1,14 @@
 //! Calibration captures rendered by the virtual rig: a chessboard at several poses, each seen
 //! once under room light with the projector dark and then under the column and the row coding
-//! patterns with the room light dimmed, exactly what an operator records at a real rig.
+//! patterns with the room light dimmed, exactly what an operator records at a real rig; and the
+//! manifest of a measurement session recorded with the rig.
 
 use super::{Chessboard, GroundTruth, RigConfig, RigError, SceneConfig, VirtualRig};
 use crate::calibrate::{CalibrationCapture, TABLE1_LEVELS};
 use crate::geometry::Pose;
 use crate::pattern::{cps_rgb, Axis, PatternSequence};
+use crate::session::manifest::{ColorJson, ExtrinsicsJson, LensJson, PatternJson};
+use crate::session::{Manifest, SESSION_FORMAT};
 use nalgebra::{Rotation3, Vector3};
 
 /// The rig `config` looking at a white target for the colour calibration, its projector gain set
@@ -40,6 +43,26 @@ pub fn render_colour_captures(config: &RigConfig) -> Result<Vec<crate::frame::Fr
             Ok(frame)
         })
         .collect()
+}
+
+impl VirtualRig {
+    /// The manifest of a measurement session recorded with this rig: its sequence, cross-talk
+    /// and exact calibration; no frames listed yet.
+    pub fn session_manifest(&self) -> Manifest {
+        Manifest {
+            format: SESSION_FORMAT.to_string(),
+            pattern: PatternJson::from_sequence(&self.sequence),
+            color: Some(ColorJson::from_cross_talk(&self.config.cross_talk)),
+            camera: LensJson::from_lens(&self.config.camera),
+            projector: LensJson::from_lens(&self.config.projector),
+            extrinsics: Some(ExtrinsicsJson::from_pose(
+                &self.config.projector_from_camera,
+            )),
+            frames: Vec::new(),
+            recording: None,
+            trial: None,
+        }
+    }
 }
 
 /// Room light for the board image with the projector dark, gray levels on white.

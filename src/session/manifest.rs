@@ -337,6 +337,36 @@ pub enum SessionEntry {
     Constant([f64; 3]),
 }
 
+impl SessionEntry {
+    /// Every entry of a coding sequence.
+    pub fn coding_entries(sequence: &crate::pattern::PatternSequence) -> Vec<SessionEntry> {
+        sequence
+            .entries
+            .iter()
+            .map(|&entry| SessionEntry::Coding {
+                axis: sequence.axis,
+                x_max: sequence.x_max,
+                entry,
+            })
+            .collect()
+    }
+}
+
+impl PatternJson {
+    /// The pattern section of a session that projects `sequence` (and nothing else).
+    pub fn from_sequence(sequence: &crate::pattern::PatternSequence) -> Self {
+        Self {
+            x_max: sequence.x_max,
+            axis: sequence.axis.into(),
+            projector_bits: sequence.projector_bits,
+            sequence: SessionEntry::coding_entries(sequence)
+                .iter()
+                .map(|e| EntryJson::from_entry(e, sequence.axis, sequence.x_max))
+                .collect(),
+        }
+    }
+}
+
 impl EntryJson {
     pub fn from_entry(entry: &SessionEntry, pattern_axis: Axis, pattern_x_max: f64) -> Self {
         let code = |c: ChannelCode| ChannelJson {

@@ -291,23 +291,7 @@ pub fn run_geometric(args: &CalibrateGeometricArgs) -> Result<()> {
     let pattern = sessions[0]
         .coding_sequence(Axis::Columns)
         .ok()
-        .map(|(seq, _)| PatternJson {
-            x_max: seq.x_max,
-            axis: seq.axis.into(),
-            projector_bits: seq.projector_bits,
-            sequence: tremorscan::session::entries_json(
-                &seq.entries
-                    .iter()
-                    .map(|&entry| SessionEntry::Coding {
-                        axis: seq.axis,
-                        x_max: seq.x_max,
-                        entry,
-                    })
-                    .collect::<Vec<_>>(),
-                seq.axis,
-                seq.x_max,
-            ),
-        });
+        .map(|(seq, _)| PatternJson::from_sequence(&seq));
     let file = CalibrationFile::from_geometric(&calib, Some(&cross_talk), &args.rig, pattern);
     file.save(&args.out)?;
     let verdict = if worst < 0.3 { "GOOD" } else { "ACCEPTABLE" };

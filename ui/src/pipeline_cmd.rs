@@ -144,7 +144,7 @@ pub fn run_record(args: &RecordArgs) -> Result<()> {
     );
     let config = RigConfig::paper(args.width, args.height).context("rig configuration")?;
     let rig = VirtualRig::new(config.clone(), config.default_sequence()?)?;
-    let manifest = crate::session_cmd::rig_manifest(&rig);
+    let manifest = rig.session_manifest();
     let (sequence, cross_talk, stereo) = (
         rig.sequence.clone(),
         rig.config.cross_talk,

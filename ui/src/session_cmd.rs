@@ -8,8 +8,8 @@ use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::export::{depth_mm, write_colour_png, write_depth_tiff, write_ply};
 use tremorscan::rig::{GroundTruth, RigConfig, Tremor, VirtualRig};
 use tremorscan::session::frames::write_png;
-use tremorscan::session::manifest::{ColorJson, ExtrinsicsJson, FrameJson, LensJson, PatternJson};
-use tremorscan::session::{Manifest, Session, SessionEntry, SESSION_FORMAT};
+use tremorscan::session::manifest::FrameJson;
+use tremorscan::session::{Session, SessionEntry};
 use tremorscan::triangulate::{PointCloud, Triangulator};
 
 #[derive(clap::Args, Debug, Clone)]
@@ -36,36 +36,6 @@ pub struct SimulateArgs {
     /// surfaces).
     #[arg(long)]
     pub truth: bool,
-}
-
-/// The manifest of a measurement session recorded with `rig`, frames not yet listed.
-pub fn rig_manifest(rig: &VirtualRig) -> Manifest {
-    let seq = &rig.sequence;
-    let entries: Vec<SessionEntry> = seq
-        .entries
-        .iter()
-        .map(|&entry| SessionEntry::Coding {
-            axis: seq.axis,
-            x_max: seq.x_max,
-            entry,
-        })
-        .collect();
-    Manifest {
-        format: SESSION_FORMAT.to_string(),
-        pattern: PatternJson {
-            x_max: seq.x_max,
-            axis: seq.axis.into(),
-            projector_bits: seq.projector_bits,
-            sequence: tremorscan::session::entries_json(&entries, seq.axis, seq.x_max),
-        },
-        color: Some(ColorJson::from_cross_talk(&rig.config.cross_talk)),
-        camera: LensJson::from_lens(&rig.config.camera),
-        projector: LensJson::from_lens(&rig.config.projector),
-        extrinsics: Some(ExtrinsicsJson::from_pose(&rig.config.projector_from_camera)),
-        frames: Vec::new(),
-        recording: None,
-        trial: None,
-    }
 }
 
 pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
@@ -100,7 +70,7 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
     if args.truth {
         std::fs::create_dir_all(args.out.join("truth"))?;
     }
-    let mut manifest = rig_manifest(&rig);
+    let mut manifest = rig.session_manifest();
     let mut frame = rig.blank_frame();
     let mut truth = GroundTruth::default();
     let mut progress = Progress::new("simulate", args.frames);

@@ -80,18 +80,8 @@ pub fn run(args: &SimulateCalibrationArgs) -> Result<()> {
     for (k, board) in poses.into_iter().take(args.views).enumerate() {
         let (capture, _) = render_capture(&config, board, k as u64)?;
         let mut entries = vec![SessionEntry::Constant([0.0; 3])];
-        let coding = |seq: &PatternSequence| {
-            seq.entries
-                .iter()
-                .map(|&entry| SessionEntry::Coding {
-                    axis: seq.axis,
-                    x_max: seq.x_max,
-                    entry,
-                })
-                .collect::<Vec<_>>()
-        };
-        entries.extend(coding(&capture.column_sequence));
-        entries.extend(coding(&capture.row_sequence));
+        entries.extend(SessionEntry::coding_entries(&capture.column_sequence));
+        entries.extend(SessionEntry::coding_entries(&capture.row_sequence));
         let mut frames = vec![capture.ambient];
         frames.extend(capture.column_frames);
         frames.extend(capture.row_frames);
