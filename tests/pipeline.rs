@@ -258,3 +258,40 @@ fn recording_keeps_every_frame_and_an_overrun_stops_it_loudly() {
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir_all(&dir2);
 }
+
+#[test]
+fn devices_pace_and_end_as_asked() {
+    use std::time::Instant;
+    use tremorscan::device::VirtualCamera;
+    // The virtual rig as a camera: the rig's own frames, numbered, ending at its limit.
+    let r = rig(160, 100);
+    let expected = rendered(&r, 4);
+    let mut camera = VirtualCamera::new(r, Pacing::AsFastAsPossible).with_limit(4);
+    let mut frame = Frame::new(1, 1, 3).unwrap();
+    for (i, want) in expected.iter().enumerate() {
+        let grabbed = camera.grab(&mut frame).unwrap();
+        assert_eq!(grabbed.sequence_number, i as u64);
+        assert_eq!(&frame, want);
+    }
+    assert!(matches!(
+        camera.grab(&mut frame),
+        Err(DeviceError::EndOfStream { frames: 4 })
+    ));
+    // A replay at the recorded rate takes the recorded time (12 frames at 121 FPS: 91 ms).
+    let r = rig(160, 100);
+    let dir = scratch("paced");
+    write_session(&dir, manifest(&r), &rendered(&r, 12)).unwrap();
+    let mut replay = ReplayCamera::new(Session::open(&dir).unwrap(), Pacing::Recorded);
+    let start = Instant::now();
+    for _ in 0..12 {
+        replay.grab(&mut frame).unwrap();
+    }
+    let wall = start.elapsed().as_secs_f64();
+    assert!(wall >= 11.0 / 121.0 - 1e-3, "{wall} s");
+    assert!((replay.fps() - 121.0).abs() < 1e-6);
+    assert!(matches!(
+        replay.grab(&mut frame),
+        Err(DeviceError::EndOfStream { frames: 12 })
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+}
