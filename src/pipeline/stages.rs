@@ -85,6 +85,16 @@ pub(super) fn capture_loop(
     queue.close();
 }
 
+/// Closes a queue when dropped, also when the thread unwinds: a producer blocked on a dead
+/// consumer wakes up instead of waiting forever.
+struct CloseOnDrop<'a, T>(&'a StageQueue<T>);
+
+impl<T> Drop for CloseOnDrop<'_, T> {
+    fn drop(&mut self) {
+        self.0.close();
+    }
+}
+
 /// "decode": sliding-window decode and triangulation of every frame that arrives.
 pub(super) fn decode_loop(
     shared: &Shared,
@@ -93,6 +103,9 @@ pub(super) fn decode_loop(
     triangulator: &Triangulator,
     display: bool,
 ) {
+    let _close_input = CloseOnDrop(queue);
+    // When the source ends (or this thread fails) consumers drain what is left, then see the end.
+    let _close_consumers = shared.consumers.as_ref().map(CloseOnDrop);
     let mut spare: Vec<Arc<CloudFrame>> = Vec::new();
     while let Some(item) = queue.pop() {
         let outcome = match decoder.push(&item.frame) {
@@ -143,10 +156,6 @@ pub(super) fn decode_loop(
         if spare.len() < 4 {
             spare.push(result);
         }
-    }
-    // The source has ended: consumers drain what is left and then see the end.
-    if let Some(consumers) = &shared.consumers {
-        consumers.close();
     }
 }
 
