@@ -24,4 +24,5 @@ pub mod pattern;
 pub mod pipeline;
 pub mod rig;
 pub mod session;
+pub mod tremor;
 pub mod triangulate;

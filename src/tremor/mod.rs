@@ -1,0 +1,22 @@
+//! Tremor measurement: control points tracked in the organised cloud ([`track`]), spectral tools
+//! ([`spectrum`]) and the clinical figures of a displacement series ([`analysis`]).
+
+pub mod analysis;
+pub mod spectrum;
+pub mod track;
+
+pub use analysis::{analyze, AnalysisOptions, TremorReport};
+pub use track::{displacements, fit_table_normal, locate, TrackOptions, TrackSample, VerticalAxis};
+
+/// Errors of tremor analysis.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum TremorError {
+    #[error("{times} time stamps but {values} values")]
+    Lengths { times: usize, values: usize },
+    #[error(
+        "only {valid} valid samples; the analysis needs at least 4 (is the point on the hand?)"
+    )]
+    TooFewSamples { valid: usize },
+    #[error("the record is {duration_s:.2} s long, too short for a spectrum")]
+    TooShort { duration_s: f64 },
+}

@@ -1,0 +1,179 @@
+//! Tracking a control point in the organised point cloud, frame by frame.
+//!
+//! A control point is a camera pixel `(u, v)`. In each cloud its 3D position is estimated from
+//! the valid points of a small square neighbourhood: the per-axis median, then the mean of the
+//! points within `outlier_k` robust standard deviations (1.4826 × MAD, at least 0.05 mm) of it,
+//! so no single invalid or noisy pixel makes a spike. With fewer than `min_valid_fraction` of
+//! the neighbourhood valid the frame is marked invalid; no value is invented.
+//!
+//! Displacement is measured along a vertical axis (the camera's optical axis by default, a
+//! fitted table normal, or a given vector) relative to the point's median position over the
+//! analysed span.
+
+use crate::triangulate::PointCloud;
+use nalgebra::Vector3;
+
+/// Settings of the neighbourhood estimate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackOptions {
+    /// Half size of the square neighbourhood, pixels (3 → 7×7).
+    pub radius_px: usize,
+    pub min_valid_fraction: f64,
+    pub outlier_k: f64,
+}
+
+impl Default for TrackOptions {
+    fn default() -> Self {
+        Self {
+            radius_px: 3,
+            min_valid_fraction: 0.5,
+            outlier_k: 3.0,
+        }
+    }
+}
+
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        0.5 * (values[n / 2 - 1] + values[n / 2])
+    }
+}
+
+/// The robust 3D position (camera frame, mm) of the surface around pixel `(u, v)`, or `None`.
+pub fn locate(cloud: &PointCloud, pixel: (f64, f64), options: &TrackOptions) -> Option<[f64; 3]> {
+    let (cu, cv) = (pixel.0.round(), pixel.1.round());
+    if cu < 0.0 || cv < 0.0 || cu >= cloud.width as f64 || cv >= cloud.height as f64 {
+        return None;
+    }
+    let r = options.radius_px as isize;
+    let (cu, cv) = (cu as isize, cv as isize);
+    let mut points = Vec::with_capacity(((2 * r + 1) * (2 * r + 1)) as usize);
+    let mut slots = 0usize;
+    for y in cv - r..=cv + r {
+        for x in cu - r..=cu + r {
+            if x < 0 || y < 0 || x >= cloud.width as isize || y >= cloud.height as isize {
+                continue;
+            }
+            slots += 1;
+            let p = cloud.point_in_camera_mm[y as usize * cloud.width + x as usize];
+            if p[2].is_finite() {
+                points.push([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]);
+            }
+        }
+    }
+    if slots == 0 || (points.len() as f64) < options.min_valid_fraction * slots as f64 {
+        return None;
+    }
+    let mut centre = [0.0; 3];
+    let mut scale = [0.0; 3];
+    for axis in 0..3 {
+        let mut v: Vec<f64> = points.iter().map(|p| p[axis]).collect();
+        centre[axis] = median(&mut v);
+        let mut dev: Vec<f64> = v.iter().map(|x| (x - centre[axis]).abs()).collect();
+        scale[axis] = (1.4826 * median(&mut dev)).max(0.05);
+    }
+    let inliers: Vec<&[f64; 3]> = points
+        .iter()
+        .filter(|p| (0..3).all(|a| (p[a] - centre[a]).abs() <= options.outlier_k * scale[a]))
+        .collect();
+    if inliers.is_empty() {
+        return Some(centre);
+    }
+    let n = inliers.len() as f64;
+    Some([0, 1, 2].map(|a| inliers.iter().map(|p| p[a]).sum::<f64>() / n))
+}
+
+/// The direction displacements are measured along.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum VerticalAxis {
+    /// The camera's optical axis (+z, away from the camera).
+    OpticalAxis,
+    /// A given direction in the camera frame (normalised when used).
+    Explicit(Vector3<f64>),
+}
+
+impl VerticalAxis {
+    pub fn unit(&self) -> Option<Vector3<f64>> {
+        match self {
+            VerticalAxis::OpticalAxis => Some(Vector3::z()),
+            VerticalAxis::Explicit(v) => v.try_normalize(1e-12),
+        }
+    }
+}
+
+/// Normal of the dominant plane of `cloud` (the table), pointing away from the camera: a
+/// least-squares plane through a grid of valid points, refit twice without the points more
+/// than 3 robust standard deviations off it (the hand). `None` with too few points.
+pub fn fit_table_normal(cloud: &PointCloud) -> Option<Vector3<f64>> {
+    let step = ((cloud.width * cloud.height) / 20_000).max(1);
+    let mut points: Vec<Vector3<f64>> = cloud
+        .point_in_camera_mm
+        .iter()
+        .step_by(step)
+        .filter(|p| p[2].is_finite())
+        .map(|p| Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
+        .collect();
+    let mut normal = Vector3::z();
+    for _ in 0..3 {
+        if points.len() < 10 {
+            return None;
+        }
+        let centroid = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+        let mut cov = nalgebra::Matrix3::zeros();
+        for p in &points {
+            let d = p - centroid;
+            cov += d * d.transpose();
+        }
+        let eig = cov.symmetric_eigen();
+        let (k, _) = eig
+            .eigenvalues
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))?;
+        normal = eig.eigenvectors.column(k).into_owned();
+        if normal.z < 0.0 {
+            normal = -normal;
+        }
+        let dist: Vec<f64> = points
+            .iter()
+            .map(|p| (p - centroid).dot(&normal).abs())
+            .collect();
+        let scale = (1.4826 * median(&mut dist.clone())).max(0.05);
+        points = points
+            .into_iter()
+            .zip(dist)
+            .filter(|(_, d)| *d <= 3.0 * scale)
+            .map(|(p, _)| p)
+            .collect();
+    }
+    Some(normal)
+}
+
+/// One tracked sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackSample {
+    pub time_s: f64,
+    /// The window's last frame in the session.
+    pub frame: usize,
+    pub position_mm: Option<[f64; 3]>,
+}
+
+/// Displacements along `axis` relative to the median position of the valid samples, mm; `None`
+/// where the sample is invalid.
+pub fn displacements(samples: &[TrackSample], axis: &Vector3<f64>) -> Vec<Option<f64>> {
+    let valid: Vec<[f64; 3]> = samples.iter().filter_map(|s| s.position_mm).collect();
+    if valid.is_empty() {
+        return vec![None; samples.len()];
+    }
+    let reference = [0, 1, 2].map(|a| median(&mut valid.iter().map(|p| p[a]).collect::<Vec<_>>()));
+    samples
+        .iter()
+        .map(|s| {
+            s.position_mm
+                .map(|p| (0..3).map(|a| (p[a] - reference[a]) * axis[a]).sum())
+        })
+        .collect()
+}
