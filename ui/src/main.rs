@@ -12,6 +12,7 @@ mod session_cmd;
 mod simulate_calibration;
 mod snapshot;
 mod sweep;
+mod tremor_cmd;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -41,6 +42,10 @@ enum Command {
     Decode(session_cmd::DecodeArgs),
     /// Summarise a session and check every frame.
     Info(session_cmd::InfoArgs),
+    /// Track control points (camera pixels) through a session; write their 3D track as CSV.
+    Track(tremor_cmd::TrackArgs),
+    /// Track control points and write their tremor figures (frequency, amplitude, spectrum) as JSON.
+    Analyze(tremor_cmd::AnalyzeArgs),
     /// Record a trial from the virtual rig through the live pipeline (frames.cpsr container).
     Record(pipeline_cmd::RecordArgs),
     /// Play a session through the pipeline (capture, decode, triangulate) and print metrics.
@@ -75,6 +80,8 @@ fn run() -> Result<()> {
         Some(Command::Simulate(args)) => session_cmd::run_simulate(&args),
         Some(Command::Decode(args)) => session_cmd::run_decode(&args),
         Some(Command::Info(args)) => session_cmd::run_info(&args),
+        Some(Command::Track(args)) => tremor_cmd::run_track(&args),
+        Some(Command::Analyze(args)) => tremor_cmd::run_analyze(&args),
         Some(Command::Record(args)) => pipeline_cmd::run_record(&args),
         Some(Command::Replay(args)) => pipeline_cmd::run_replay(&args),
         Some(Command::SimulateCalibration(args)) => simulate_calibration::run(&args),

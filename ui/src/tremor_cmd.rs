@@ -1,0 +1,219 @@
+//! `tremorscan track` and `analyze`: control points tracked through every window of a session,
+//! written as CSV, and their clinical tremor figures as JSON.
+
+use crate::progress::Progress;
+use anyhow::{bail, Context, Result};
+use nalgebra::Vector3;
+use serde_json::json;
+use std::io::Write;
+use std::path::PathBuf;
+use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
+use tremorscan::session::Session;
+use tremorscan::tremor::{
+    analyze, displacements, fit_table_normal, locate, AnalysisOptions, TrackOptions, TrackSample,
+};
+use tremorscan::triangulate::{PointCloud, Triangulator};
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct TrackArgs {
+    pub session: PathBuf,
+    /// Control point as camera pixel `U,V` (repeat for more points).
+    #[arg(long = "point", value_parser = parse_point, required = true)]
+    pub points: Vec<(f64, f64)>,
+    /// CSV output: time_s,frame,point,u,v,x_mm,y_mm,z_mm,displacement_mm,valid.
+    #[arg(long)]
+    pub csv: PathBuf,
+    /// Vertical axis: `X,Y,Z` in the camera frame, or `table` for the fitted table normal
+    /// (default: the camera's optical axis).
+    #[arg(long)]
+    pub vertical: Option<String>,
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct AnalyzeArgs {
+    pub session: PathBuf,
+    #[arg(long = "point", value_parser = parse_point, required = true)]
+    pub points: Vec<(f64, f64)>,
+    /// JSON output, one object per point.
+    #[arg(long)]
+    pub json: PathBuf,
+    #[arg(long)]
+    pub vertical: Option<String>,
+}
+
+fn parse_point(text: &str) -> Result<(f64, f64), String> {
+    let (u, v) = text
+        .split_once(',')
+        .ok_or_else(|| format!("`{text}`: expected U,V"))?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<f64>()
+            .map_err(|e| format!("`{text}`: {e}"))
+    };
+    Ok((parse(u)?, parse(v)?))
+}
+
+/// Per point: its samples, one per decoded (or refused) window; and the unit vertical axis.
+pub fn track_session(
+    session: &Session,
+    points: &[(f64, f64)],
+    vertical: Option<&str>,
+) -> Result<(Vec<Vec<TrackSample>>, Vector3<f64>)> {
+    let sequence = session.sequence()?;
+    let (w, h) = session.camera_size();
+    for &(u, v) in points {
+        if !(u >= 0.0 && v >= 0.0 && u < w as f64 && v < h as f64) {
+            bail!("point {u},{v} lies outside the {w}×{h} camera image");
+        }
+    }
+    let fps = session.manifest.frames.len().saturating_sub(1) as f64
+        / (session.manifest.frames.last().map_or(0.0, |f| f.time_s)
+            - session.manifest.frames.first().map_or(0.0, |f| f.time_s))
+        .max(1e-9);
+    let cross_talk = session
+        .cross_talk()?
+        .unwrap_or_else(tremorscan::color::CrossTalk::identity);
+    let window = sequence.entries.len() as f64;
+    let mut decoder = SlidingDecoder::new(sequence, cross_talk, DecodeParams::default())?
+        .with_max_span((window - 0.5) / fps.max(1e-3));
+    let triangulator = Triangulator::new(session.stereo_model()?)?;
+    let mut cloud = PointCloud::default();
+    let mut tracks = vec![Vec::new(); points.len()];
+    let mut axis = match vertical {
+        None => Some(Vector3::z()),
+        Some("table") => None,
+        Some(text) => {
+            let v: Vec<f64> = text
+                .split(',')
+                .map(|s| s.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("--vertical {text}: expected X,Y,Z or `table`"))?;
+            let v = (v.len() == 3)
+                .then(|| Vector3::new(v[0], v[1], v[2]))
+                .and_then(|v| v.try_normalize(1e-12))
+                .with_context(|| format!("--vertical {text}: needs three numbers, not all 0"))?;
+            Some(v)
+        }
+    };
+    let mut progress = Progress::new("tracking", session.frame_count());
+    for i in 0..session.frame_count() {
+        let frame = session.load_frame(i)?;
+        let centre_s = frame.time_s - (window - 1.0) / 2.0 / fps.max(1e-3);
+        let decoded = match decoder.push(&frame)? {
+            WindowOutcome::Decoded(out) => {
+                triangulator.triangulate(out, &mut cloud)?;
+                true
+            }
+            WindowOutcome::Filling { .. } => continue,
+            _ => false,
+        };
+        if decoded && axis.is_none() {
+            axis = fit_table_normal(&cloud);
+        }
+        for (track, &pixel) in tracks.iter_mut().zip(points) {
+            track.push(TrackSample {
+                time_s: if decoded { cloud.time_s } else { centre_s },
+                frame: i,
+                position_mm: if decoded {
+                    locate(&cloud, pixel, &TrackOptions::default())
+                } else {
+                    None
+                },
+            });
+        }
+        progress.step(i + 1);
+    }
+    progress.finish();
+    let axis = axis.context("no window decoded, so no table plane could be fitted")?;
+    Ok((tracks, axis))
+}
+
+pub fn run_track(args: &TrackArgs) -> Result<()> {
+    let session = Session::open(&args.session)?;
+    let (tracks, axis) = track_session(&session, &args.points, args.vertical.as_deref())?;
+    let mut out = String::from("time_s,frame,point,u,v,x_mm,y_mm,z_mm,displacement_mm,valid\n");
+    for (k, (track, &(u, v))) in tracks.iter().zip(&args.points).enumerate() {
+        let d = displacements(track, &axis);
+        for (s, d) in track.iter().zip(d) {
+            let [x, y, z] = s.position_mm.map_or([f64::NAN; 3], |p| p);
+            let fmt = |v: f64| {
+                if v.is_finite() {
+                    format!("{v:.4}")
+                } else {
+                    String::new()
+                }
+            };
+            out.push_str(&format!(
+                "{:.6},{},{k},{u},{v},{},{},{},{},{}\n",
+                s.time_s,
+                s.frame,
+                fmt(x),
+                fmt(y),
+                fmt(z),
+                d.map_or(String::new(), fmt),
+                u8::from(s.position_mm.is_some())
+            ));
+        }
+        let valid = track.iter().filter(|s| s.position_mm.is_some()).count();
+        println!(
+            "point {k} ({u}, {v}): {valid} of {} samples valid",
+            track.len()
+        );
+    }
+    std::fs::File::create(&args.csv)
+        .and_then(|mut f| f.write_all(out.as_bytes()))
+        .with_context(|| format!("writing {}", args.csv.display()))?;
+    println!(
+        "vertical axis ({:.4}, {:.4}, {:.4}); wrote {}",
+        axis.x,
+        axis.y,
+        axis.z,
+        args.csv.display()
+    );
+    Ok(())
+}
+
+pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
+    let session = Session::open(&args.session)?;
+    let (tracks, axis) = track_session(&session, &args.points, args.vertical.as_deref())?;
+    let mut objects = Vec::new();
+    for (track, &(u, v)) in tracks.iter().zip(&args.points) {
+        let times: Vec<f64> = track.iter().map(|s| s.time_s).collect();
+        let d = displacements(track, &axis);
+        let r = analyze(&times, &d, &AnalysisOptions::default())
+            .with_context(|| format!("point {u},{v}"))?;
+        println!(
+            "point ({u}, {v}): peak {} Hz, peak-to-peak {:.3} mm, RMS {:.3} mm, occupancy {:.0} %, MDS-UPDRS amplitude bin {}, {} % valid",
+            r.peak_frequency_hz.map_or("none".to_string(), |f| format!("{f:.3}")),
+            r.amplitude_peak_to_peak_mm,
+            r.amplitude_rms_mm,
+            100.0 * r.occupancy,
+            r.updrs_amplitude_bin,
+            (100.0 * r.valid_fraction).round()
+        );
+        objects.push(json!({
+            "pixel": [u, v],
+            "valid_fraction": r.valid_fraction,
+            "longest_gap_s": r.longest_gap_s,
+            "duration_s": r.duration_s,
+            "peak_frequency_hz": r.peak_frequency_hz,
+            "peaks_hz": r.peaks_hz,
+            "amplitude_peak_to_peak_mm": r.amplitude_peak_to_peak_mm,
+            "amplitude_rms_mm": r.amplitude_rms_mm,
+            "band_power_3_12": r.band_power_mm2,
+            "band_power_4_6": r.narrow_band_power_mm2,
+            "occupancy": r.occupancy,
+            "frequency_stability": r.frequency_stability_hz,
+            "updrs_amplitude_bin": r.updrs_amplitude_bin,
+            "frequency_bands": r.frequency_bands,
+            "vertical_axis": [axis.x, axis.y, axis.z],
+            "spectrum": {
+                "frequency_hz": r.spectrum.frequency_hz,
+                "psd_mm2_per_hz": r.spectrum.density,
+            },
+        }));
+    }
+    tremorscan::jsonfile::write_atomic(&args.json, &objects)?;
+    println!("wrote {}", args.json.display());
+    Ok(())
+}
