@@ -8,6 +8,7 @@ mod calibrate_cmd;
 mod demo;
 mod pipeline_cmd;
 mod progress;
+mod report_png;
 mod session_cmd;
 mod simulate_calibration;
 mod snapshot;

@@ -37,6 +37,9 @@ pub struct AnalyzeArgs {
     /// JSON output, one object per point.
     #[arg(long)]
     pub json: PathBuf,
+    /// Also write the report figure (displacement and spectrum per point) as PNG.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
     #[arg(long)]
     pub vertical: Option<String>,
 }
@@ -177,6 +180,7 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
     let (tracks, axis) = track_session(&session, &args.points, args.vertical.as_deref())?;
     let mut objects = Vec::new();
+    let mut series = Vec::new();
     for (track, &(u, v)) in tracks.iter().zip(&args.points) {
         let times: Vec<f64> = track.iter().map(|s| s.time_s).collect();
         let d = displacements(track, &axis);
@@ -212,6 +216,21 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
                 "psd_mm2_per_hz": r.spectrum.density,
             },
         }));
+        series.push((format!("point ({u}, {v})"), times, d, r));
+    }
+    if let Some(png) = &args.png {
+        let figures: Vec<crate::report_png::PointFigure<'_>> = series
+            .iter()
+            .map(|(label, times, d, r)| crate::report_png::PointFigure {
+                label: label.clone(),
+                times_s: times,
+                displacement_mm: d,
+                report: r,
+            })
+            .collect();
+        crate::report_png::write_report(png, &figures)
+            .with_context(|| format!("writing {}", png.display()))?;
+        println!("wrote {}", png.display());
     }
     tremorscan::jsonfile::write_atomic(&args.json, &objects)?;
     println!("wrote {}", args.json.display());
