@@ -6,7 +6,9 @@ pub mod spectrum;
 pub mod track;
 
 pub use analysis::{analyze, AnalysisOptions, TremorReport};
-pub use track::{displacements, fit_table_normal, locate, TrackOptions, TrackSample, VerticalAxis};
+pub use track::{
+    displacements, fit_table_normal, locate, pixel_of, TrackOptions, TrackSample, VerticalAxis,
+};
 
 /// Errors of tremor analysis.
 #[derive(Debug, thiserror::Error, PartialEq)]

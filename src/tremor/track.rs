@@ -1,6 +1,6 @@
 //! Tracking a control point in the organised point cloud, frame by frame.
 //!
-//! A control point is a camera pixel `(u, v)`. In each cloud its 3D position is estimated from
+//! A control point is a camera pixel `(u, v)`, or a 3D point that [`pixel_of`] projects to one. In each cloud its 3D position is estimated from
 //! the valid points of a small square neighbourhood: the per-axis median, then the mean of the
 //! points within `outlier_k` robust standard deviations (1.4826 × MAD, at least 0.05 mm) of it,
 //! so no single invalid or noisy pixel makes a spike. With fewer than `min_valid_fraction` of
@@ -84,6 +84,17 @@ pub fn locate(cloud: &PointCloud, pixel: (f64, f64), options: &TrackOptions) -> 
     }
     let n = inliers.len() as f64;
     Some([0, 1, 2].map(|a| inliers.iter().map(|p| p[a]).sum::<f64>() / n))
+}
+
+/// The camera pixel of a control point picked as a 3D point (camera frame, mm), e.g. clicked in
+/// the point cloud: from then on it is tracked like one picked in the image. `None` when the
+/// point lies behind the camera or outside the image.
+pub fn pixel_of(
+    point_in_camera_mm: [f64; 3],
+    camera: &crate::geometry::LensModel,
+) -> Option<(f64, f64)> {
+    let p = Vector3::from(point_in_camera_mm);
+    camera.project(&p).filter(|&(u, v)| camera.contains(u, v))
 }
 
 /// The direction displacements are measured along.

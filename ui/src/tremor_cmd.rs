@@ -10,7 +10,8 @@ use std::path::PathBuf;
 use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::session::Session;
 use tremorscan::tremor::{
-    analyze, displacements, fit_table_normal, locate, AnalysisOptions, TrackOptions, TrackSample,
+    analyze, displacements, fit_table_normal, locate, pixel_of, AnalysisOptions, TrackOptions,
+    TrackSample,
 };
 use tremorscan::triangulate::{PointCloud, Triangulator};
 
@@ -18,29 +19,37 @@ use tremorscan::triangulate::{PointCloud, Triangulator};
 pub struct TrackArgs {
     pub session: PathBuf,
     /// Control point as camera pixel `U,V` (repeat for more points).
-    #[arg(long = "point", value_parser = parse_point, required = true)]
+    #[arg(long = "point", value_parser = parse_point, required_unless_present = "points_mm")]
     pub points: Vec<(f64, f64)>,
+    /// Control point as a 3D point `X,Y,Z` in the camera frame, mm (repeat for more).
+    #[arg(long = "point-mm", value_parser = parse_point_mm, allow_hyphen_values = true)]
+    pub points_mm: Vec<[f64; 3]>,
     /// CSV output: time_s,frame,point,u,v,x_mm,y_mm,z_mm,displacement_mm,valid.
     #[arg(long)]
     pub csv: PathBuf,
     /// Vertical axis: `X,Y,Z` in the camera frame, or `table` for the fitted table normal
     /// (default: the camera's optical axis).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub vertical: Option<String>,
 }
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct AnalyzeArgs {
     pub session: PathBuf,
-    #[arg(long = "point", value_parser = parse_point, required = true)]
+    /// Control point as camera pixel `U,V` (repeat for more points).
+    #[arg(long = "point", value_parser = parse_point, required_unless_present = "points_mm")]
     pub points: Vec<(f64, f64)>,
+    /// Control point as a 3D point `X,Y,Z` in the camera frame, mm (repeat for more).
+    #[arg(long = "point-mm", value_parser = parse_point_mm, allow_hyphen_values = true)]
+    pub points_mm: Vec<[f64; 3]>,
     /// JSON output, one object per point.
     #[arg(long)]
     pub json: PathBuf,
     /// Also write the report figure (displacement and spectrum per point) as PNG.
     #[arg(long)]
     pub png: Option<PathBuf>,
-    #[arg(long)]
+    /// Vertical axis, as for `track`.
+    #[arg(long, allow_hyphen_values = true)]
     pub vertical: Option<String>,
 }
 
@@ -54,6 +63,36 @@ fn parse_point(text: &str) -> Result<(f64, f64), String> {
             .map_err(|e| format!("`{text}`: {e}"))
     };
     Ok((parse(u)?, parse(v)?))
+}
+
+fn parse_point_mm(text: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|s| {
+            s.trim()
+                .parse::<f64>()
+                .map_err(|e| format!("`{text}`: {e}"))
+        })
+        .collect::<Result<_, _>>()?;
+    <[f64; 3]>::try_from(v).map_err(|_| format!("`{text}`: expected X,Y,Z"))
+}
+
+/// The pixels of all control points: those given as pixels, then the 3D ones projected.
+fn all_pixels(
+    session: &Session,
+    pixels: &[(f64, f64)],
+    points_mm: &[[f64; 3]],
+) -> Result<Vec<(f64, f64)>> {
+    let mut all = pixels.to_vec();
+    if !points_mm.is_empty() {
+        let camera = session.camera()?;
+        for p in points_mm {
+            all.push(pixel_of(*p, &camera).with_context(|| {
+                format!("point {:?} mm does not project into the camera image", p)
+            })?);
+        }
+    }
+    Ok(all)
 }
 
 /// Per point: its samples, one per decoded (or refused) window; and the unit vertical axis.
@@ -133,9 +172,10 @@ pub fn track_session(
 
 pub fn run_track(args: &TrackArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
-    let (tracks, axis) = track_session(&session, &args.points, args.vertical.as_deref())?;
+    let points = all_pixels(&session, &args.points, &args.points_mm)?;
+    let (tracks, axis) = track_session(&session, &points, args.vertical.as_deref())?;
     let mut out = String::from("time_s,frame,point,u,v,x_mm,y_mm,z_mm,displacement_mm,valid\n");
-    for (k, (track, &(u, v))) in tracks.iter().zip(&args.points).enumerate() {
+    for (k, (track, &(u, v))) in tracks.iter().zip(&points).enumerate() {
         let d = displacements(track, &axis);
         for (s, d) in track.iter().zip(d) {
             let [x, y, z] = s.position_mm.map_or([f64::NAN; 3], |p| p);
@@ -178,10 +218,11 @@ pub fn run_track(args: &TrackArgs) -> Result<()> {
 
 pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
-    let (tracks, axis) = track_session(&session, &args.points, args.vertical.as_deref())?;
+    let points = all_pixels(&session, &args.points, &args.points_mm)?;
+    let (tracks, axis) = track_session(&session, &points, args.vertical.as_deref())?;
     let mut objects = Vec::new();
     let mut series = Vec::new();
-    for (track, &(u, v)) in tracks.iter().zip(&args.points) {
+    for (track, &(u, v)) in tracks.iter().zip(&points) {
         let times: Vec<f64> = track.iter().map(|s| s.time_s).collect();
         let d = displacements(track, &axis);
         let r = analyze(&times, &d, &AnalysisOptions::default())

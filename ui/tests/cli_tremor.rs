@@ -50,6 +50,24 @@ fn track_and_analyze_a_simulated_tremor() {
         "one row per decoded window and point"
     );
     assert!(lines[1].ends_with(",1"), "{}", lines[1]);
+    // The same fingertip picked as a 3D point (as clicked in the cloud) tracks the same surface.
+    let tip_mm = format!("{},{},{}", tip.x, tip.y, tip.z);
+    let csv3 = dir.join("track3d.csv");
+    run(&[
+        "track",
+        d,
+        "--point-mm",
+        &tip_mm,
+        "--csv",
+        csv3.to_str().unwrap(),
+    ]);
+    let text3 = std::fs::read_to_string(&csv3).unwrap();
+    let z = |line: &str| line.split(',').nth(7).unwrap().to_string();
+    let rows3: Vec<&str> = text3.lines().skip(1).collect();
+    assert_eq!(rows3.len(), 240);
+    for (a, b) in rows3.iter().zip(lines.iter().skip(1)) {
+        assert_eq!(z(a), z(b), "{a} vs {b}");
+    }
     let json = dir.join("tremor.json");
     let stdout = run(&[
         "analyze",
