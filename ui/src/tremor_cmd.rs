@@ -15,18 +15,15 @@ use tremorscan::tremor::{
 };
 use tremorscan::triangulate::{PointCloud, Triangulator};
 
+/// The control points and the vertical axis, shared by `track` and `analyze`.
 #[derive(clap::Args, Debug, Clone)]
-pub struct TrackArgs {
-    pub session: PathBuf,
+pub struct ControlPointArgs {
     /// Control point as camera pixel `U,V` (repeat for more points).
     #[arg(long = "point", value_parser = parse_point, required_unless_present = "points_mm")]
     pub points: Vec<(f64, f64)>,
     /// Control point as a 3D point `X,Y,Z` in the camera frame, mm (repeat for more).
     #[arg(long = "point-mm", value_parser = parse_point_mm, allow_hyphen_values = true)]
     pub points_mm: Vec<[f64; 3]>,
-    /// CSV output: time_s,frame,point,u,v,x_mm,y_mm,z_mm,displacement_mm,valid.
-    #[arg(long)]
-    pub csv: PathBuf,
     /// Vertical axis: `X,Y,Z` in the camera frame, or `table` for the fitted table normal
     /// (default: the camera's optical axis).
     #[arg(long, allow_hyphen_values = true)]
@@ -34,23 +31,26 @@ pub struct TrackArgs {
 }
 
 #[derive(clap::Args, Debug, Clone)]
+pub struct TrackArgs {
+    pub session: PathBuf,
+    #[command(flatten)]
+    pub control: ControlPointArgs,
+    /// CSV output: time_s,frame,point,u,v,x_mm,y_mm,z_mm,displacement_mm,valid.
+    #[arg(long)]
+    pub csv: PathBuf,
+}
+
+#[derive(clap::Args, Debug, Clone)]
 pub struct AnalyzeArgs {
     pub session: PathBuf,
-    /// Control point as camera pixel `U,V` (repeat for more points).
-    #[arg(long = "point", value_parser = parse_point, required_unless_present = "points_mm")]
-    pub points: Vec<(f64, f64)>,
-    /// Control point as a 3D point `X,Y,Z` in the camera frame, mm (repeat for more).
-    #[arg(long = "point-mm", value_parser = parse_point_mm, allow_hyphen_values = true)]
-    pub points_mm: Vec<[f64; 3]>,
+    #[command(flatten)]
+    pub control: ControlPointArgs,
     /// JSON output, one object per point.
     #[arg(long)]
     pub json: PathBuf,
     /// Also write the report figure (displacement and spectrum per point) as PNG.
     #[arg(long)]
     pub png: Option<PathBuf>,
-    /// Vertical axis, as for `track`.
-    #[arg(long, allow_hyphen_values = true)]
-    pub vertical: Option<String>,
 }
 
 fn parse_point(text: &str) -> Result<(f64, f64), String> {
@@ -78,15 +78,11 @@ fn parse_point_mm(text: &str) -> Result<[f64; 3], String> {
 }
 
 /// The pixels of all control points: those given as pixels, then the 3D ones projected.
-fn all_pixels(
-    session: &Session,
-    pixels: &[(f64, f64)],
-    points_mm: &[[f64; 3]],
-) -> Result<Vec<(f64, f64)>> {
-    let mut all = pixels.to_vec();
-    if !points_mm.is_empty() {
+fn all_pixels(session: &Session, control: &ControlPointArgs) -> Result<Vec<(f64, f64)>> {
+    let mut all = control.points.clone();
+    if !control.points_mm.is_empty() {
         let camera = session.camera()?;
-        for p in points_mm {
+        for p in &control.points_mm {
             all.push(pixel_of(*p, &camera).with_context(|| {
                 format!("point {:?} mm does not project into the camera image", p)
             })?);
@@ -172,8 +168,8 @@ pub fn track_session(
 
 pub fn run_track(args: &TrackArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
-    let points = all_pixels(&session, &args.points, &args.points_mm)?;
-    let (tracks, axis) = track_session(&session, &points, args.vertical.as_deref())?;
+    let points = all_pixels(&session, &args.control)?;
+    let (tracks, axis) = track_session(&session, &points, args.control.vertical.as_deref())?;
     let mut out = String::from("time_s,frame,point,u,v,x_mm,y_mm,z_mm,displacement_mm,valid\n");
     for (k, (track, &(u, v))) in tracks.iter().zip(&points).enumerate() {
         let d = displacements(track, &axis);
@@ -218,8 +214,8 @@ pub fn run_track(args: &TrackArgs) -> Result<()> {
 
 pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
-    let points = all_pixels(&session, &args.points, &args.points_mm)?;
-    let (tracks, axis) = track_session(&session, &points, args.vertical.as_deref())?;
+    let points = all_pixels(&session, &args.control)?;
+    let (tracks, axis) = track_session(&session, &points, args.control.vertical.as_deref())?;
     let mut objects = Vec::new();
     let mut series = Vec::new();
     for (track, &(u, v)) in tracks.iter().zip(&points) {
