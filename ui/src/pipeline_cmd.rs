@@ -59,6 +59,7 @@ fn run_for(pipeline: &Pipeline, seconds: Option<f64>) -> bool {
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct ReplayArgs {
+    /// Session folder (`cps-session/1`, see docs/formats.md).
     pub session: PathBuf,
     /// Play at the recorded frame rate instead of as fast as possible.
     #[arg(long)]

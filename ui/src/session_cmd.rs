@@ -106,6 +106,7 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct DecodeArgs {
+    /// Session folder (`cps-session/1`, see docs/formats.md).
     pub session: PathBuf,
     /// The frame that ends the window to decode.
     #[arg(long)]
@@ -198,6 +199,7 @@ pub fn run_decode(args: &DecodeArgs) -> Result<()> {
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct InfoArgs {
+    /// Session folder (`cps-session/1`, see docs/formats.md).
     pub session: PathBuf,
 }
 

@@ -32,6 +32,7 @@ pub struct ControlPointArgs {
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct TrackArgs {
+    /// Session folder (`cps-session/1`, see docs/formats.md).
     pub session: PathBuf,
     #[command(flatten)]
     pub control: ControlPointArgs,
@@ -42,6 +43,7 @@ pub struct TrackArgs {
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct AnalyzeArgs {
+    /// Session folder (`cps-session/1`, see docs/formats.md).
     pub session: PathBuf,
     #[command(flatten)]
     pub control: ControlPointArgs,
