@@ -225,7 +225,16 @@ impl Pipeline {
             spawn(
                 "capture",
                 Box::new(move || stages::capture_loop(&shared, &queue, camera, policy)),
-            )?
+            )
+        };
+        let capture = match capture {
+            Ok(capture) => capture,
+            Err(e) => {
+                // Let the decode thread see the end instead of waiting for frames forever.
+                decode_queue.close();
+                let _ = decode.join();
+                return Err(e);
+            }
         };
         Ok(Self {
             shared,
