@@ -2,19 +2,12 @@
 //! FileStorage files (YAML and XML) import to the same calibration.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
+mod common;
+
 use serde_json::{json, Value};
-use std::path::PathBuf;
 use tremorscan::calibrate::{import_opencv, CalibrationFile, ColourFile, CALIBRATION_FORMAT};
 use tremorscan::rig::RigConfig;
 use tremorscan::session::manifest::{ColorJson, ExtrinsicsJson, LensJson};
-
-fn scratch(name: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("tremorscan-calfile-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 fn rig_file() -> CalibrationFile {
     let c = RigConfig::paper(960, 600).unwrap();
@@ -200,4 +193,11 @@ fn opencv_xml_imports_with_other_names() {
     assert_eq!(calib.projector.distortion.k2, c.projector.distortion.k2);
     assert_eq!(calib.camera.distortion.k3, 0.0);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A fresh, existing scratch folder.
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = common::scratch(&format!("calfile-{name}"));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
 }

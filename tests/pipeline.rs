@@ -3,27 +3,18 @@
 //! written intact.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
-use std::path::PathBuf;
+mod common;
+
+use common::{rig, scratch};
+
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 use tremorscan::device::{Camera, DeviceError, Grabbed, Pacing, ReplayCamera};
 use tremorscan::frame::Frame;
 use tremorscan::pipeline::{DecodePolicy, Pipeline, PipelineConfig, PipelineEvent};
-use tremorscan::rig::{RigConfig, VirtualRig};
+use tremorscan::rig::VirtualRig;
 use tremorscan::session::{write_session, Manifest, Session, TrialJson};
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tremorscan-pipe-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
-
-fn rig(w: usize, h: usize) -> VirtualRig {
-    let config = RigConfig::paper(w, h).unwrap();
-    let seq = config.default_sequence().unwrap();
-    VirtualRig::new(config, seq).unwrap()
-}
 
 fn manifest(rig: &VirtualRig) -> Manifest {
     rig.session_manifest()

@@ -2,23 +2,14 @@
 //! a recording cut off mid-frame stays readable up to its last complete frame.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
-use std::path::PathBuf;
+mod common;
+
+use common::{rig, scratch};
+
 use tremorscan::frame::Frame;
-use tremorscan::rig::{RigConfig, VirtualRig};
+use tremorscan::rig::VirtualRig;
 use tremorscan::session::manifest::ControlPointJson;
 use tremorscan::session::{Manifest, Recorder, Session, TrialJson};
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tremorscan-rec-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
-
-fn rig() -> VirtualRig {
-    let config = RigConfig::paper(160, 100).unwrap();
-    let seq = config.default_sequence().unwrap();
-    VirtualRig::new(config, seq).unwrap()
-}
 
 fn manifest(rig: &VirtualRig) -> Manifest {
     rig.session_manifest()
@@ -50,7 +41,7 @@ fn frames(rig: &VirtualRig, n: u64) -> Vec<Frame> {
 
 #[test]
 fn a_recording_reads_back_bit_for_bit_with_its_trial() {
-    let rig = rig();
+    let rig = rig(160, 100);
     let dir = scratch("roundtrip");
     let recorded = frames(&rig, 9);
     let mut recorder = Recorder::create(&dir, manifest(&rig), trial()).unwrap();
@@ -89,7 +80,7 @@ fn a_recording_reads_back_bit_for_bit_with_its_trial() {
 
 #[test]
 fn a_recording_cut_off_mid_frame_keeps_every_complete_frame() {
-    let rig = rig();
+    let rig = rig(160, 100);
     let dir = scratch("crash");
     let recorded = frames(&rig, 6);
     let mut recorder = Recorder::create(&dir, manifest(&rig), trial()).unwrap();
@@ -115,7 +106,7 @@ fn a_recording_cut_off_mid_frame_keeps_every_complete_frame() {
 
 #[test]
 fn a_frame_of_the_wrong_size_is_refused_and_the_recording_goes_on() {
-    let rig = rig();
+    let rig = rig(160, 100);
     let dir = scratch("size");
     let mut recorder = Recorder::create(&dir, manifest(&rig), trial()).unwrap();
     let good = frames(&rig, 2);

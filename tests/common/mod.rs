@@ -56,3 +56,18 @@ pub fn checks_off(mut params: DecodeParams) -> DecodeParams {
     params.check_order_jumps = false;
     params
 }
+
+/// A fresh path under the system's temporary folder, unique to this test process and `name`
+/// (anything left there by an earlier run is removed; the folder itself is not created).
+pub fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("tremorscan-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// The paper rig at `width`×`height` with the trembling hand and its default sequence.
+pub fn rig(width: usize, height: usize) -> VirtualRig {
+    let config = RigConfig::paper(width, height).unwrap();
+    let seq = config.default_sequence().unwrap();
+    VirtualRig::new(config, seq).unwrap()
+}

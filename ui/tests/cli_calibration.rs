@@ -2,28 +2,13 @@
 //! from them, and check the file written against the virtual rig; then the failure paths.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+
+use common::{s, scratch, tremorscan};
+
+use std::path::Path;
 use tremorscan::calibrate::{CalibrationFile, ColourFile};
 use tremorscan::rig::RigConfig;
-
-fn tremorscan(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tremorscan"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tremorscan-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 fn views(dir: &Path, n: usize) -> Vec<String> {
     (0..n)

@@ -2,29 +2,11 @@
 //! compare its depth with the truth; `info` and the failure exits.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+
+use common::{s, scratch, tremorscan};
+
 use tremorscan::export::read_depth_tiff;
-
-fn tremorscan(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tremorscan"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "tremorscan-cli-session-{}-{name}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 #[test]
 fn simulate_then_decode_matches_the_true_depth() {
