@@ -5,9 +5,11 @@
 //!
 //! Devices are driven from one thread each (`Send`), never shared.
 
+pub mod playback;
 pub mod replay;
 pub mod virtual_rig;
 
+pub use playback::{PlaybackCamera, PlaybackControl, PlaybackState};
 pub use replay::ReplayCamera;
 pub use virtual_rig::VirtualCamera;
 
@@ -26,6 +28,10 @@ pub enum DeviceError {
     Frame(String),
     #[error("the projector cannot show this sequence: {0}")]
     Sequence(String),
+    /// No frame right now (a paused replay); the caller asks again. Grabs return it within a
+    /// fraction of a second so the capture thread can notice a stop request.
+    #[error("the source is paused")]
+    Idle,
 }
 
 /// How a finite source paces its frames.

@@ -112,6 +112,12 @@ pub struct CapturedFrame {
 #[derive(Debug, Clone)]
 pub struct CloudFrame {
     pub cloud: PointCloud,
+    /// The window's last camera frame as captured (for the live image), when the pipeline
+    /// publishes to a display; otherwise empty.
+    pub camera_image: Frame,
+    /// Projector coordinate per pixel, projector px, NaN where invalid (the unwrapped phase
+    /// in projector units), when publishing to a display; otherwise empty.
+    pub projector_px: Vec<f32>,
     /// Source number of the window's last frame.
     pub window_end: u64,
     /// From the arrival of the window's last frame to publication.
@@ -144,7 +150,7 @@ struct Shared {
     stop: AtomicBool,
     metrics: Metrics,
     latest: LatestSlot<Arc<CloudFrame>>,
-    consumers: Option<StageQueue<Arc<CloudFrame>>>,
+    consumers: Option<Arc<StageQueue<Arc<CloudFrame>>>>,
     recorder: Mutex<Option<RecorderLink>>,
     /// Recorders stopped by an overrun, still writing what they hold.
     draining: Mutex<Vec<JoinHandle<Result<RecordingSummary, SessionError>>>>,
@@ -198,7 +204,8 @@ impl Pipeline {
             stop: AtomicBool::new(false),
             metrics: Metrics::default(),
             latest: LatestSlot::default(),
-            consumers: (config.consumer_queue > 0).then(|| StageQueue::new(config.consumer_queue)),
+            consumers: (config.consumer_queue > 0)
+                .then(|| Arc::new(StageQueue::new(config.consumer_queue))),
             recorder: Mutex::new(None),
             draining: Mutex::new(Vec::new()),
             events: Mutex::new(Vec::new()),
@@ -265,10 +272,13 @@ impl Pipeline {
     }
 
     pub fn consumer_dropped(&self) -> u64 {
-        self.shared
-            .consumers
-            .as_ref()
-            .map_or(0, StageQueue::dropped)
+        self.shared.consumers.as_ref().map_or(0, |q| q.dropped())
+    }
+
+    /// The consumer queue itself, for a consumer on its own thread (the GUI's tracker): it
+    /// outlives the pipeline handle and ends (`pop` gives `None`) when the pipeline stops.
+    pub fn consumer_queue(&self) -> Option<Arc<StageQueue<Arc<CloudFrame>>>> {
+        self.shared.consumers.clone()
     }
 
     /// Drains the events so far.

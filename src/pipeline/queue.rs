@@ -86,6 +86,21 @@ impl<T> StageQueue<T> {
         }
     }
 
+    /// Takes the oldest item if there is one, without waiting.
+    pub fn try_pop(&self) -> Option<T> {
+        let item = lock(&self.state).items.pop_front();
+        if item.is_some() {
+            self.changed.notify_all();
+        }
+        item
+    }
+
+    /// Whether the producer has closed the queue and every item has been taken.
+    pub fn is_finished(&self) -> bool {
+        let s = lock(&self.state);
+        s.closed && s.items.is_empty()
+    }
+
     pub fn close(&self) {
         lock(&self.state).closed = true;
         self.changed.notify_all();

@@ -5,7 +5,7 @@ use super::{
     RecorderLink, Shared, StageQueue,
 };
 use crate::decode::{SlidingDecoder, WindowOutcome};
-use crate::device::Camera;
+use crate::device::{Camera, DeviceError};
 use crate::frame::Frame;
 use crate::session::record::RecordingSummary;
 use crate::session::{Recorder, SessionError};
@@ -54,6 +54,11 @@ pub(super) fn capture_loop(
                 let lost = grabbed.sequence_number.saturating_sub(expected_next);
                 expected_next = grabbed.sequence_number + 1;
                 shared.metrics.frame_captured(slot.arrived, lost);
+            }
+            // A paused source: give the frame back, look at the stop flag, then ask again.
+            Err(DeviceError::Idle) => {
+                pool.push(item);
+                continue;
             }
             Err(e) if is_end(&e) => {
                 shared.event(PipelineEvent::SourceEnded {
@@ -105,7 +110,7 @@ pub(super) fn decode_loop(
 ) {
     let _close_input = CloseOnDrop(queue);
     // When the source ends (or this thread fails) consumers drain what is left, then see the end.
-    let _close_consumers = shared.consumers.as_ref().map(CloseOnDrop);
+    let _close_consumers = shared.consumers.as_deref().map(CloseOnDrop);
     let mut spare: Vec<Arc<CloudFrame>> = Vec::new();
     while let Some(item) = queue.pop() {
         let outcome = match decoder.push(&item.frame) {
@@ -129,6 +134,15 @@ pub(super) fn decode_loop(
             Some(i) => spare.swap_remove(i),
             None => Arc::new(CloudFrame {
                 cloud: PointCloud::default(),
+                camera_image: Frame {
+                    width: 0,
+                    height: 0,
+                    channels: 3,
+                    data: Vec::new(),
+                    time_s: 0.0,
+                    pattern_index: 0,
+                },
+                projector_px: Vec::new(),
                 window_end: 0,
                 latency: Default::default(),
             }),
@@ -139,6 +153,11 @@ pub(super) fn decode_loop(
         if let Err(e) = triangulator.triangulate(out, &mut slot.cloud) {
             shared.event(PipelineEvent::DecodeFailed(e.to_string()));
             continue;
+        }
+        if display {
+            // Reuses the slot's buffers: no allocation once the spare clouds exist.
+            slot.camera_image.clone_from(&item.frame);
+            slot.projector_px.clone_from(&out.coordinate_px);
         }
         slot.window_end = item.sequence_number;
         let now = Instant::now();

@@ -1,11 +1,14 @@
 //! Tremor measurement: control points tracked in the organised cloud ([`track`]), spectral tools
-//! ([`spectrum`]) and the clinical figures of a displacement series ([`analysis`]).
+//! ([`spectrum`]), the clinical figures of a displacement series ([`analysis`]) and points
+//! tracked live for the GUI ([`live`]).
 
 pub mod analysis;
+pub mod live;
 pub mod spectrum;
 pub mod track;
 
 pub use analysis::{analyze, AnalysisOptions, TremorReport};
+pub use live::{LivePoint, LiveTracker};
 pub use track::{
     displacements, fit_table_normal, locate, pixel_of, TrackOptions, TrackSample, VerticalAxis,
 };

@@ -1,19 +1,13 @@
-//! `tremorscan`: the desktop application's binary. Until the GUI lands it runs headless
-//! subcommands over the same library: `demo` (the default) streams the virtual rig through the
-//! sliding-window decoder, `sweep` tabulates unwrap robustness against camera noise, `snapshot`
+//! `tremorscan`: the desktop application's binary. Without a command (or with `gui`) it opens
+//! the window ([`gui`]); its subcommands run the same work headless: `demo` streams the virtual
+//! rig through the sliding-window decoder, `sweep` tabulates unwrap robustness against camera noise, `snapshot`
 //! writes one decoded window as PNG images; `simulate-calibration`, `calibrate-color`,
 //! `calibrate-geometric` and `import-calibration` calibrate a rig from recorded sessions.
 
-mod calibrate_cmd;
-mod demo;
-mod pipeline_cmd;
-mod progress;
-mod report_png;
-mod session_cmd;
-mod simulate_calibration;
-mod snapshot;
-mod sweep;
-mod tremor_cmd;
+use tremorscan_ui::{
+    calibrate_cmd, demo, gui, pipeline_cmd, session_cmd, simulate_calibration, snapshot, sweep,
+    tremor_cmd,
+};
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -31,6 +25,8 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Open the desktop application (the default when no command is given).
+    Gui,
     /// Stream the virtual rig (a trembling hand) through the decoder and print live figures.
     Demo(demo::DemoArgs),
     /// Sweep camera noise and tabulate unwrap failures and RMS error for each unwrap method.
@@ -75,6 +71,7 @@ fn main() -> std::process::ExitCode {
 fn run() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Some(Command::Gui) | None => gui::run(),
         Some(Command::Demo(args)) => demo::run(&args),
         Some(Command::Sweep(args)) => sweep::run(&args),
         Some(Command::Snapshot(args)) => snapshot::run(&args),
@@ -89,6 +86,5 @@ fn run() -> Result<()> {
         Some(Command::CalibrateColor(args)) => calibrate_cmd::run_color(&args),
         Some(Command::CalibrateGeometric(args)) => calibrate_cmd::run_geometric(&args),
         Some(Command::ImportCalibration(args)) => calibrate_cmd::run_import(&args),
-        None => demo::run(&demo::DemoArgs::default()),
     }
 }

@@ -11,7 +11,7 @@ use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::session::Session;
 use tremorscan::tremor::{
     analyze, displacements, fit_table_normal, locate, pixel_of, AnalysisOptions, TrackOptions,
-    TrackSample,
+    TrackSample, TremorReport,
 };
 use tremorscan::triangulate::{PointCloud, Triangulator};
 
@@ -168,26 +168,35 @@ pub fn track_session(
     Ok((tracks, axis))
 }
 
-pub fn run_track(args: &TrackArgs) -> Result<()> {
-    let session = Session::open(&args.session)?;
-    let points = all_pixels(&session, &args.control)?;
-    let (tracks, axis) = track_session(&session, &points, args.control.vertical.as_deref())?;
+/// One control point's samples, for [`track_csv`].
+pub struct TrackColumn<'a> {
+    pub name: String,
+    pub pixel: (f64, f64),
+    pub samples: &'a [TrackSample],
+}
+
+/// The track as CSV: one row per sample and point, displacement along `axis`; empty cells where
+/// the point was not measured.
+pub fn track_csv(points: &[TrackColumn<'_>], axis: &Vector3<f64>) -> String {
     let mut out = String::from("time_s,frame,point,u,v,x_mm,y_mm,z_mm,displacement_mm,valid\n");
-    for (k, (track, &(u, v))) in tracks.iter().zip(&points).enumerate() {
-        let d = displacements(track, &axis);
-        for (s, d) in track.iter().zip(d) {
+    let fmt = |v: f64| {
+        if v.is_finite() {
+            format!("{v:.4}")
+        } else {
+            String::new()
+        }
+    };
+    for p in points {
+        let d = displacements(p.samples, axis);
+        for (s, d) in p.samples.iter().zip(d) {
             let [x, y, z] = s.position_mm.map_or([f64::NAN; 3], |p| p);
-            let fmt = |v: f64| {
-                if v.is_finite() {
-                    format!("{v:.4}")
-                } else {
-                    String::new()
-                }
-            };
             out.push_str(&format!(
-                "{:.6},{},{k},{u},{v},{},{},{},{},{}\n",
+                "{:.6},{},{},{},{},{},{},{},{},{}\n",
                 s.time_s,
                 s.frame,
+                p.name.replace(',', " "),
+                p.pixel.0,
+                p.pixel.1,
                 fmt(x),
                 fmt(y),
                 fmt(z),
@@ -195,6 +204,51 @@ pub fn run_track(args: &TrackArgs) -> Result<()> {
                 u8::from(s.position_mm.is_some())
             ));
         }
+    }
+    out
+}
+
+/// The JSON object of one point's tremor figures.
+pub fn report_json(pixel: (f64, f64), r: &TremorReport, axis: &Vector3<f64>) -> serde_json::Value {
+    json!({
+        "pixel": [pixel.0, pixel.1],
+        "valid_fraction": r.valid_fraction,
+        "longest_gap_s": r.longest_gap_s,
+        "duration_s": r.duration_s,
+        "peak_frequency_hz": r.peak_frequency_hz,
+        "peaks_hz": r.peaks_hz,
+        "amplitude_peak_to_peak_mm": r.amplitude_peak_to_peak_mm,
+        "amplitude_rms_mm": r.amplitude_rms_mm,
+        "band_power_3_12": r.band_power_mm2,
+        "band_power_4_6": r.narrow_band_power_mm2,
+        "occupancy": r.occupancy,
+        "frequency_stability": r.frequency_stability_hz,
+        "updrs_amplitude_bin": r.updrs_amplitude_bin,
+        "frequency_bands": r.frequency_bands,
+        "vertical_axis": [axis.x, axis.y, axis.z],
+        "spectrum": {
+            "frequency_hz": r.spectrum.frequency_hz,
+            "psd_mm2_per_hz": r.spectrum.density,
+        },
+    })
+}
+
+pub fn run_track(args: &TrackArgs) -> Result<()> {
+    let session = Session::open(&args.session)?;
+    let points = all_pixels(&session, &args.control)?;
+    let (tracks, axis) = track_session(&session, &points, args.control.vertical.as_deref())?;
+    let named: Vec<TrackColumn<'_>> = tracks
+        .iter()
+        .zip(&points)
+        .enumerate()
+        .map(|(k, (track, &pixel))| TrackColumn {
+            name: k.to_string(),
+            pixel,
+            samples: track,
+        })
+        .collect();
+    let out = track_csv(&named, &axis);
+    for (k, (track, &(u, v))) in tracks.iter().zip(&points).enumerate() {
         let valid = track.iter().filter(|s| s.position_mm.is_some()).count();
         println!(
             "point {k} ({u}, {v}): {valid} of {} samples valid",
@@ -234,27 +288,7 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
             r.updrs_amplitude_bin,
             (100.0 * r.valid_fraction).round()
         );
-        objects.push(json!({
-            "pixel": [u, v],
-            "valid_fraction": r.valid_fraction,
-            "longest_gap_s": r.longest_gap_s,
-            "duration_s": r.duration_s,
-            "peak_frequency_hz": r.peak_frequency_hz,
-            "peaks_hz": r.peaks_hz,
-            "amplitude_peak_to_peak_mm": r.amplitude_peak_to_peak_mm,
-            "amplitude_rms_mm": r.amplitude_rms_mm,
-            "band_power_3_12": r.band_power_mm2,
-            "band_power_4_6": r.narrow_band_power_mm2,
-            "occupancy": r.occupancy,
-            "frequency_stability": r.frequency_stability_hz,
-            "updrs_amplitude_bin": r.updrs_amplitude_bin,
-            "frequency_bands": r.frequency_bands,
-            "vertical_axis": [axis.x, axis.y, axis.z],
-            "spectrum": {
-                "frequency_hz": r.spectrum.frequency_hz,
-                "psd_mm2_per_hz": r.spectrum.density,
-            },
-        }));
+        objects.push(report_json((u, v), &r, &axis));
         series.push((format!("point ({u}, {v})"), times, d, r));
     }
     if let Some(png) = &args.png {

@@ -1,0 +1,193 @@
+//! Control points tracked live: every cloud the pipeline produces updates each point's history
+//! (the last [`LiveTracker::history_s`] seconds of scene time), from which the GUI draws the
+//! displacement plot and the tremor panel.
+//!
+//! A point is a camera pixel, as in [`super::track`]; dragging it moves the pixel and starts its
+//! history anew. When scene time goes backwards (a replay was sought back) every history is
+//! cleared, so a series never mixes two passes.
+
+use super::analysis::{analyze, AnalysisOptions, TremorReport};
+use super::track::{displacements, locate, TrackOptions, TrackSample};
+use super::TremorError;
+use crate::triangulate::PointCloud;
+use nalgebra::Vector3;
+use std::collections::VecDeque;
+
+/// One control point and its recent samples.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LivePoint {
+    /// Stable identity (names can change).
+    pub id: u64,
+    pub name: String,
+    /// Camera pixel, (u, v).
+    pub pixel: (f64, f64),
+    pub samples: VecDeque<TrackSample>,
+}
+
+impl LivePoint {
+    /// Times (s) and displacements along `axis` (mm, relative to the median position; `None`
+    /// where the point was not measured) of the history.
+    pub fn displacement_series(&self, axis: &Vector3<f64>) -> (Vec<f64>, Vec<Option<f64>>) {
+        let samples: Vec<TrackSample> = self.samples.iter().copied().collect();
+        let times = samples.iter().map(|s| s.time_s).collect();
+        (times, displacements(&samples, axis))
+    }
+
+    /// The tremor figures of the history.
+    pub fn analyze(
+        &self,
+        axis: &Vector3<f64>,
+        options: &AnalysisOptions,
+    ) -> Result<TremorReport, TremorError> {
+        let (times, d) = self.displacement_series(axis);
+        analyze(&times, &d, options)
+    }
+
+    /// The newest measured position, camera frame, mm.
+    pub fn latest_position_mm(&self) -> Option<[f64; 3]> {
+        self.samples.back().and_then(|s| s.position_mm)
+    }
+}
+
+/// The tracked control points.
+#[derive(Debug, Clone)]
+pub struct LiveTracker {
+    pub points: Vec<LivePoint>,
+    /// Scene seconds of history kept per point.
+    pub history_s: f64,
+    pub options: TrackOptions,
+    /// Clouds seen so far.
+    pub clouds_seen: u64,
+    next_id: u64,
+    last_time_s: Option<f64>,
+}
+
+impl LiveTracker {
+    pub fn new(history_s: f64) -> Self {
+        Self {
+            points: Vec::new(),
+            history_s,
+            options: TrackOptions::default(),
+            clouds_seen: 0,
+            next_id: 1,
+            last_time_s: None,
+        }
+    }
+
+    /// Adds a point at camera pixel `pixel`; returns its id.
+    pub fn add(&mut self, name: impl Into<String>, pixel: (f64, f64)) -> u64 {
+        let id = self.next_id;
+        self.next_id += 1;
+        self.points.push(LivePoint {
+            id,
+            name: name.into(),
+            pixel,
+            samples: VecDeque::new(),
+        });
+        id
+    }
+
+    pub fn remove(&mut self, id: u64) -> bool {
+        let before = self.points.len();
+        self.points.retain(|p| p.id != id);
+        self.points.len() != before
+    }
+
+    pub fn get(&self, id: u64) -> Option<&LivePoint> {
+        self.points.iter().find(|p| p.id == id)
+    }
+
+    /// Moves a point to a new pixel; its history restarts (it is a different surface point).
+    pub fn move_to(&mut self, id: u64, pixel: (f64, f64)) {
+        if let Some(p) = self.points.iter_mut().find(|p| p.id == id) {
+            p.pixel = pixel;
+            p.samples.clear();
+        }
+    }
+
+    pub fn rename(&mut self, id: u64, name: impl Into<String>) {
+        if let Some(p) = self.points.iter_mut().find(|p| p.id == id) {
+            p.name = name.into();
+        }
+    }
+
+    /// Forgets every history (not the points).
+    pub fn clear_history(&mut self) {
+        for p in &mut self.points {
+            p.samples.clear();
+        }
+        self.last_time_s = None;
+    }
+
+    /// Measures every point in `cloud` (the window ending at source frame `frame`).
+    pub fn update(&mut self, cloud: &PointCloud, frame: usize) {
+        self.clouds_seen += 1;
+        if self.last_time_s.is_some_and(|t| cloud.time_s < t) {
+            self.clear_history();
+        }
+        self.last_time_s = Some(cloud.time_s);
+        let oldest_kept = cloud.time_s - self.history_s;
+        for p in &mut self.points {
+            p.samples.push_back(TrackSample {
+                time_s: cloud.time_s,
+                frame,
+                position_mm: locate(cloud, p.pixel, &self.options),
+            });
+            while p.samples.front().is_some_and(|s| s.time_s < oldest_kept) {
+                p.samples.pop_front();
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn flat_cloud(time_s: f64, z_mm: f32) -> PointCloud {
+        let (w, h) = (20, 10);
+        PointCloud {
+            width: w,
+            height: h,
+            time_s,
+            point_in_camera_mm: vec![[0.0, 0.0, z_mm]; w * h],
+            colour_rgb: vec![[0, 0, 0]; w * h],
+            fringe_amplitude: vec![1.0; w * h],
+        }
+    }
+
+    #[test]
+    fn keeps_the_history_window_and_measures_each_point() {
+        let mut t = LiveTracker::new(1.0);
+        let a = t.add("a", (5.0, 5.0));
+        let outside = t.add("outside", (50.0, 5.0));
+        for k in 0..300 {
+            t.update(&flat_cloud(k as f64 / 121.0, 500.0 + k as f32), k);
+        }
+        let pa = t.get(a).expect("point a");
+        // 1 s at 121 Hz: samples from t − 1 s to t inclusive.
+        assert_eq!(pa.samples.len(), 122);
+        assert_eq!(pa.latest_position_mm(), Some([0.0, 0.0, 799.0]));
+        let po = t.get(outside).expect("point outside");
+        assert!(po.samples.iter().all(|s| s.position_mm.is_none()));
+    }
+
+    #[test]
+    fn time_going_back_and_moving_a_point_restart_histories() {
+        let mut t = LiveTracker::new(5.0);
+        let a = t.add("a", (5.0, 5.0));
+        let b = t.add("b", (6.0, 5.0));
+        for k in 0..10 {
+            t.update(&flat_cloud(1.0 + k as f64 * 0.01, 500.0), k);
+        }
+        t.move_to(b, (7.0, 5.0));
+        assert_eq!(t.get(a).map(|p| p.samples.len()), Some(10));
+        assert_eq!(t.get(b).map(|p| p.samples.len()), Some(0));
+        t.update(&flat_cloud(0.5, 500.0), 0);
+        assert_eq!(t.get(a).map(|p| p.samples.len()), Some(1));
+        t.rename(a, "index tip");
+        assert_eq!(t.get(a).map(|p| p.name.as_str()), Some("index tip"));
+        assert!(t.remove(a));
+        assert!(!t.remove(a));
+    }
+}

@@ -1,0 +1,246 @@
+//! The 3D view: the egui side of [`crate::render::point_cloud`]. The renderer lives in egui-wgpu's
+//! callback resources (created once with the app); each frame this view adds a paint callback
+//! that uploads the newest cloud (only when it changed) and the view matrix, then draws into
+//! egui's own render pass. Dragging orbits, right- or middle-dragging pans, scrolling zooms, a
+//! click picks the surface point under the pointer and adds a control point there; markers are
+//! projected with the shader's own matrix.
+
+use super::points::{PointColours, PointEdit};
+use crate::render::orbit::{pick, project, OrbitCamera, ViewPreset};
+use crate::render::point_cloud::{pack_points, PointCloudRenderer, PointUniforms, PointVertex};
+use egui::{Color32, PointerButton, Sense, Vec2};
+use egui_wgpu::CallbackTrait;
+use nalgebra::Vector3;
+use std::sync::Arc;
+use tremorscan::pipeline::CloudFrame;
+use tremorscan::tremor::LiveTracker;
+
+/// Depth buffer the app asks eframe for, shared by egui's pass and the point pipeline.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// Registers the renderer with egui-wgpu; `depth_format` must match the render pass it will
+/// draw into (eframe's depth buffer, or none).
+pub fn install_renderer(
+    render_state: &egui_wgpu::RenderState,
+    depth_format: Option<wgpu::TextureFormat>,
+) {
+    let renderer = PointCloudRenderer::new(
+        &render_state.device,
+        render_state.target_format,
+        depth_format,
+    );
+    render_state
+        .renderer
+        .write()
+        .callback_resources
+        .insert(renderer);
+}
+
+struct CloudCallback {
+    /// New points to upload, when the cloud changed since the last frame.
+    upload: Option<Arc<Vec<PointVertex>>>,
+    uniforms: PointUniforms,
+}
+
+impl CallbackTrait for CloudCallback {
+    fn prepare(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        _screen: &egui_wgpu::ScreenDescriptor,
+        _encoder: &mut wgpu::CommandEncoder,
+        resources: &mut egui_wgpu::CallbackResources,
+    ) -> Vec<wgpu::CommandBuffer> {
+        if let Some(renderer) = resources.get_mut::<PointCloudRenderer>() {
+            if let Some(points) = &self.upload {
+                renderer.upload(device, queue, points);
+            }
+            renderer.set_view(queue, &self.uniforms);
+        }
+        Vec::new()
+    }
+
+    fn paint(
+        &self,
+        _info: egui::PaintCallbackInfo,
+        pass: &mut wgpu::RenderPass<'static>,
+        resources: &egui_wgpu::CallbackResources,
+    ) {
+        if let Some(renderer) = resources.get::<PointCloudRenderer>() {
+            renderer.draw(pass);
+        }
+    }
+}
+
+pub struct CloudView {
+    pub camera: Option<OrbitCamera>,
+    pub point_size_px: f32,
+    packed: Arc<Vec<PointVertex>>,
+    /// Window last uploaded.
+    uploaded: Option<u64>,
+    /// Whether a wgpu renderer was installed (false under a renderer without wgpu).
+    pub has_renderer: bool,
+}
+
+impl CloudView {
+    pub fn new(has_renderer: bool, point_size_px: f32) -> Self {
+        Self {
+            camera: None,
+            point_size_px,
+            packed: Arc::new(Vec::new()),
+            uploaded: None,
+            has_renderer,
+        }
+    }
+
+    /// A view of `frame` from `preset`, centred on its valid points.
+    pub fn reset(&mut self, frame: Option<&CloudFrame>, preset: ViewPreset) {
+        let target = frame
+            .and_then(|f| centroid(&f.cloud.point_in_camera_mm))
+            .unwrap_or(Vector3::new(0.0, 0.0, 500.0));
+        self.camera = Some(OrbitCamera::new(preset, target, 750.0));
+    }
+
+    pub fn cloud_view_ui(
+        &mut self,
+        ui: &mut egui::Ui,
+        frame: Option<&CloudFrame>,
+        tracker: &LiveTracker,
+        colours: &mut PointColours,
+        edits: &mut Vec<PointEdit>,
+    ) {
+        ui.horizontal(|ui| {
+            ui.label("3D:");
+            if ui.button("Reset view").clicked() {
+                self.reset(frame, ViewPreset::Top);
+            }
+            if ui.button("Top").clicked() {
+                self.reset(frame, ViewPreset::Top);
+            }
+            if ui.button("Side").clicked() {
+                self.reset(frame, ViewPreset::Side);
+            }
+            ui.add(egui::Slider::new(&mut self.point_size_px, 1.0..=6.0).text("point px"));
+            if let Some(f) = frame {
+                ui.label(format!(
+                    "{} points",
+                    self.packed.len().min(f.cloud.width * f.cloud.height)
+                ));
+            }
+        });
+        if self.camera.is_none() && frame.is_some() {
+            self.reset(frame, ViewPreset::Top);
+        }
+        let size = ui.available_size().max(Vec2::splat(50.0));
+        let (rect, response) = ui.allocate_exact_size(size, Sense::click_and_drag());
+        ui.painter().rect_filled(rect, 0.0, Color32::from_gray(18));
+        let Some(camera) = &mut self.camera else {
+            ui.painter().text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "Waiting for the first cloud…",
+                egui::FontId::proportional(14.0),
+                Color32::GRAY,
+            );
+            return;
+        };
+        if response.dragged_by(PointerButton::Primary) {
+            let d = response.drag_delta();
+            camera.orbit(d.x, d.y);
+        }
+        if response.dragged_by(PointerButton::Secondary)
+            || response.dragged_by(PointerButton::Middle)
+        {
+            let d = response.drag_delta();
+            camera.pan(d.x, d.y, rect.height());
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                camera.zoom((scroll * 0.002).exp());
+            }
+        }
+        let clip_from_world = camera.clip_from_world(rect.width() / rect.height().max(1.0));
+        let view_size = [rect.width(), rect.height()];
+        if response.clicked() {
+            if let (Some(at), Some(f)) = (response.interact_pointer_pos(), frame) {
+                let local = at - rect.min;
+                if let Some(i) = pick(
+                    &clip_from_world,
+                    &f.cloud.point_in_camera_mm,
+                    view_size,
+                    [local.x, local.y],
+                    8.0,
+                ) {
+                    let pixel = ((i % f.cloud.width) as f64, (i / f.cloud.width) as f64);
+                    edits.push(PointEdit::Add { pixel });
+                }
+            }
+        }
+        let upload = match frame {
+            Some(f) if self.uploaded != Some(f.window_end) => {
+                let mut packed =
+                    Arc::try_unwrap(std::mem::take(&mut self.packed)).unwrap_or_default();
+                pack_points(&f.cloud, 1, &mut packed);
+                self.packed = Arc::new(packed);
+                self.uploaded = Some(f.window_end);
+                Some(Arc::clone(&self.packed))
+            }
+            _ => None,
+        };
+        if self.has_renderer {
+            let ppp = ui.ctx().pixels_per_point();
+            let uniforms = PointUniforms {
+                clip_from_world: clip_from_world.into(),
+                viewport_px: [rect.width() * ppp, rect.height() * ppp],
+                point_size_px: self.point_size_px * ppp,
+                padding: 0.0,
+            };
+            ui.painter().add(egui_wgpu::Callback::new_paint_callback(
+                rect,
+                CloudCallback { upload, uniforms },
+            ));
+        } else {
+            ui.painter().text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "The 3D view needs the wgpu renderer",
+                egui::FontId::proportional(14.0),
+                Color32::GRAY,
+            );
+        }
+        let painter = ui.painter_at(rect);
+        for p in &tracker.points {
+            let Some(q) = p.latest_position_mm() else {
+                continue;
+            };
+            let q = [q[0] as f32, q[1] as f32, q[2] as f32];
+            if let Some((s, _)) = project(&clip_from_world, q, view_size) {
+                let centre = rect.min + Vec2::new(s[0], s[1]);
+                let colour = colours.colour(p.id);
+                painter.circle_stroke(centre, 7.0, egui::Stroke::new(2.5, colour));
+                painter.text(
+                    centre + Vec2::new(9.0, -9.0),
+                    egui::Align2::LEFT_BOTTOM,
+                    &p.name,
+                    egui::FontId::proportional(13.0),
+                    colour,
+                );
+            }
+        }
+        response.on_hover_text(
+            "Drag: orbit · right/middle drag: pan · scroll: zoom · click: add a control point",
+        );
+    }
+}
+
+/// Mean of the valid points (every 7th, enough for a view centre), mm.
+fn centroid(points: &[[f32; 3]]) -> Option<Vector3<f32>> {
+    let mut sum = Vector3::zeros();
+    let mut n = 0usize;
+    for p in points.iter().step_by(7).filter(|p| p[2].is_finite()) {
+        sum += Vector3::new(p[0], p[1], p[2]);
+        n += 1;
+    }
+    (n > 0).then(|| sum / n as f32)
+}

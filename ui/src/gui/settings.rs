@@ -1,0 +1,154 @@
+//! Settings that persist between runs: the device, the virtual rig's image size, the pattern
+//! parameters, the unwrapping method, the trial defaults and the folders last used. Stored as
+//! JSON in `$XDG_CONFIG_HOME/tremorscan/settings.json` (or `~/.config/…`), written atomically
+//! when the app closes or a setting changes. An unreadable file is reported and replaced by
+//! defaults; it is never a reason not to start.
+
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use tremorscan::decode::UnwrapMethod;
+
+/// Where frames come from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum DeviceChoice {
+    VirtualRig,
+    Replay { session: PathBuf },
+}
+
+/// Unwrapping method, as stored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UnwrapChoice {
+    PerPixel,
+    Robust,
+}
+
+impl UnwrapChoice {
+    pub fn method(self) -> UnwrapMethod {
+        match self {
+            UnwrapChoice::PerPixel => UnwrapMethod::ChebyshevPerPixel,
+            UnwrapChoice::Robust => UnwrapMethod::ChebyshevRobust,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Settings {
+    pub device: DeviceChoice,
+    /// Virtual rig camera image, pixels.
+    pub rig_width: usize,
+    pub rig_height: usize,
+    /// Highest fringe count n of the CPS-RGB sequence (n, n−1, n−2).
+    pub fringe_count: u32,
+    /// Coded projector axis: columns (true) or rows.
+    pub code_columns: bool,
+    /// Projector bit depth per channel.
+    pub projector_bits: u32,
+    pub unwrap: UnwrapChoice,
+    /// Folder new trials are recorded into.
+    pub sessions_dir: PathBuf,
+    pub trial_seconds: f64,
+    pub countdown_seconds: f64,
+    /// Where the last export went.
+    pub export_dir: PathBuf,
+    /// Calibration files in use (none: the rig's own exact calibration).
+    pub calibration_file: Option<PathBuf>,
+    pub colour_file: Option<PathBuf>,
+    /// Point size in the 3D view, pixels.
+    pub point_size_px: f32,
+}
+
+fn home() -> PathBuf {
+    std::env::var_os("HOME").map_or_else(|| PathBuf::from("."), PathBuf::from)
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            device: DeviceChoice::VirtualRig,
+            rig_width: 640,
+            rig_height: 400,
+            fringe_count: 65,
+            code_columns: true,
+            projector_bits: 6,
+            unwrap: UnwrapChoice::Robust,
+            sessions_dir: home().join("tremorscan-sessions"),
+            trial_seconds: 10.0,
+            countdown_seconds: 3.0,
+            export_dir: home().join("tremorscan-exports"),
+            calibration_file: None,
+            colour_file: None,
+            point_size_px: 2.0,
+        }
+    }
+}
+
+/// The settings file's default location.
+pub fn default_path() -> PathBuf {
+    let config = std::env::var_os("XDG_CONFIG_HOME")
+        .map(PathBuf::from)
+        .filter(|p| p.is_absolute())
+        .unwrap_or_else(|| home().join(".config"));
+    config.join("tremorscan").join("settings.json")
+}
+
+/// Loads settings from `path`: defaults when it does not exist, defaults and a message when it
+/// cannot be read.
+pub fn load(path: &Path) -> (Settings, Option<String>) {
+    match std::fs::read_to_string(path) {
+        Ok(text) => match serde_json::from_str::<Settings>(&text) {
+            Ok(s) => (s, None),
+            Err(e) => (
+                Settings::default(),
+                Some(format!(
+                    "settings file {} is unreadable ({e}); using defaults",
+                    path.display()
+                )),
+            ),
+        },
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => (Settings::default(), None),
+        Err(e) => (
+            Settings::default(),
+            Some(format!(
+                "cannot read settings file {} ({e}); using defaults",
+                path.display()
+            )),
+        ),
+    }
+}
+
+/// Saves settings to `path`, creating its folder.
+pub fn save(path: &Path, settings: &Settings) -> Result<(), String> {
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    }
+    tremorscan::jsonfile::write_atomic(path, settings).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn settings_round_trip_and_a_bad_file_falls_back_to_defaults() {
+        let dir = std::env::temp_dir().join(format!("tremorscan-settings-{}", std::process::id()));
+        let path = dir.join("settings.json");
+        let mut s = Settings {
+            device: DeviceChoice::Replay {
+                session: PathBuf::from("/data/trial-1"),
+            },
+            ..Settings::default()
+        };
+        s.trial_seconds = 30.0;
+        save(&path, &s).expect("save");
+        assert_eq!(load(&path), (s, None));
+        std::fs::write(&path, "{ not json").expect("write");
+        let (loaded, message) = load(&path);
+        assert_eq!(loaded, Settings::default());
+        assert!(message.is_some_and(|m| m.contains("unreadable")));
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}

@@ -1,0 +1,183 @@
+//! The running measurement behind the window: a pipeline on the chosen device and a tracker
+//! thread that measures every control point in every cloud.
+//!
+//! ```text
+//! device ─► Pipeline ("capture", "decode") ─┬─► latest cloud (display, newest wins)
+//!                                           └─► consumer queue ─► "tracker" ─► LiveTracker (Mutex)
+//! ```
+//!
+//! The tracker runs on its own named thread so a slow window (software rendering draws a few
+//! frames a second) never costs a tracked sample: the consumer queue holds a second of clouds at
+//! the rates this machine reaches and counts what it drops, shown in the status bar.
+
+use super::settings::{DeviceChoice, Settings};
+use anyhow::{Context, Result};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use tremorscan::calibrate::file::{CalibrationFile, ColourFile};
+use tremorscan::device::{Pacing, PlaybackCamera, PlaybackControl, VirtualCamera};
+use tremorscan::pattern::{cps_rgb, Axis, PatternSequence};
+use tremorscan::pipeline::{CloudFrame, Pipeline, PipelineConfig};
+use tremorscan::rig::{RigConfig, VirtualRig};
+use tremorscan::session::{Manifest, Session};
+use tremorscan::tremor::LiveTracker;
+
+/// Seconds of displacement history kept per control point.
+pub const HISTORY_S: f64 = 5.0;
+
+/// Clouds waiting for the tracker at most.
+const TRACKER_QUEUE: usize = 32;
+
+/// What is measuring.
+pub struct Source {
+    pub pipeline: Pipeline,
+    pub tracker: Arc<Mutex<LiveTracker>>,
+    tracker_thread: Option<JoinHandle<()>>,
+    /// The manifest a recording from this source starts from (live devices only).
+    pub recording_manifest: Option<Manifest>,
+    /// Replay controls, for a replayed session.
+    pub playback: Option<Arc<PlaybackControl>>,
+    /// The replayed session (control points are saved into it).
+    pub session: Option<Session>,
+    /// The newest cloud shown.
+    pub latest: Option<Arc<CloudFrame>>,
+    pub nominal_fps: f64,
+}
+
+/// The CPS-RGB sequence the settings ask for, on a projector of `projector_size`.
+pub fn sequence_of(settings: &Settings, projector_size: (usize, usize)) -> Result<PatternSequence> {
+    let (axis, x_max) = if settings.code_columns {
+        (Axis::Columns, projector_size.0 as f64)
+    } else {
+        (Axis::Rows, projector_size.1 as f64)
+    };
+    cps_rgb(settings.fringe_count, x_max, axis, settings.projector_bits)
+        .context("pattern parameters")
+}
+
+/// The virtual rig the settings describe.
+pub fn virtual_rig(settings: &Settings) -> Result<VirtualRig> {
+    let config =
+        RigConfig::paper(settings.rig_width, settings.rig_height).context("virtual rig size")?;
+    let sequence = sequence_of(settings, (config.projector.width, config.projector.height))?;
+    VirtualRig::new(config, sequence).context("virtual rig")
+}
+
+impl Source {
+    /// Starts the device of `settings` with its tracker, keeping the points of `tracker`.
+    pub fn start(settings: &Settings, tracker: LiveTracker) -> Result<Self> {
+        let config = PipelineConfig {
+            consumer_queue: TRACKER_QUEUE,
+            decode_params: tremorscan::decode::DecodeParams {
+                unwrap: settings.unwrap.method(),
+                ..Default::default()
+            },
+            ..PipelineConfig::default()
+        };
+        let (pipeline, recording_manifest, playback, session, nominal_fps) = match &settings.device
+        {
+            DeviceChoice::VirtualRig => {
+                let rig = virtual_rig(settings)?;
+                let mut cross_talk = rig.config.cross_talk;
+                let mut stereo = rig.stereo_model();
+                if let Some(path) = &settings.colour_file {
+                    cross_talk = ColourFile::load(path)
+                        .with_context(|| format!("colour calibration {}", path.display()))?
+                        .1;
+                }
+                if let Some(path) = &settings.calibration_file {
+                    let (_, c) = CalibrationFile::load(path)
+                        .with_context(|| format!("calibration {}", path.display()))?;
+                    stereo.camera = c.camera;
+                    stereo.projector = c.projector;
+                    stereo.projector_from_camera = c.projector_from_camera;
+                }
+                let mut manifest = rig.session_manifest();
+                manifest.color = Some(tremorscan::session::manifest::ColorJson::from_cross_talk(
+                    &cross_talk,
+                ));
+                let fps = rig.config.fps;
+                let sequence = rig.sequence.clone();
+                let camera = VirtualCamera::new(rig, Pacing::Recorded);
+                let pipeline =
+                    Pipeline::start(Box::new(camera), sequence, cross_talk, stereo, config)
+                        .context("starting the virtual rig")?;
+                (pipeline, Some(manifest), None, None, fps)
+            }
+            DeviceChoice::Replay { session } => {
+                let opened = Session::open(session)
+                    .with_context(|| format!("opening session {}", session.display()))?;
+                let sequence = opened.sequence()?;
+                let cross_talk = opened
+                    .cross_talk()?
+                    .unwrap_or_else(tremorscan::color::CrossTalk::identity);
+                let stereo = opened.stereo_model()?;
+                let kept = opened.clone();
+                let (camera, control) = PlaybackCamera::new(opened);
+                let fps = tremorscan::device::Camera::fps(&camera);
+                let pipeline =
+                    Pipeline::start(Box::new(camera), sequence, cross_talk, stereo, config)
+                        .context("starting the replay")?;
+                (pipeline, None, Some(control), Some(kept), fps)
+            }
+        };
+        let tracker = Arc::new(Mutex::new(tracker));
+        let tracker_thread = match pipeline.consumer_queue() {
+            Some(queue) => {
+                let tracker = Arc::clone(&tracker);
+                Some(
+                    std::thread::Builder::new()
+                        .name("tracker".to_string())
+                        .spawn(move || {
+                            while let Some(cloud) = queue.pop() {
+                                tracker
+                                    .lock()
+                                    .unwrap_or_else(PoisonError::into_inner)
+                                    .update(&cloud.cloud, cloud.window_end as usize);
+                            }
+                        })
+                        .context("starting the tracker thread")?,
+                )
+            }
+            None => None,
+        };
+        Ok(Self {
+            pipeline,
+            tracker,
+            tracker_thread,
+            recording_manifest,
+            playback,
+            session,
+            latest: None,
+            nominal_fps,
+        })
+    }
+
+    /// Takes the newest cloud, if a new one arrived; returns whether it did.
+    pub fn poll(&mut self) -> bool {
+        match self.pipeline.latest() {
+            Some(cloud) => {
+                self.latest = Some(cloud);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Locks the tracker (a poisoned lock only means the tracker thread panicked mid-update;
+    /// the histories are still usable).
+    pub fn tracker(&self) -> std::sync::MutexGuard<'_, LiveTracker> {
+        self.tracker.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Stops everything and hands back the tracker (its points carry over to the next source).
+    pub fn stop(mut self) -> LiveTracker {
+        // Dropping the pipeline stops its threads and closes the consumer queue.
+        drop(self.pipeline);
+        if let Some(t) = self.tracker_thread.take() {
+            let _ = t.join();
+        }
+        let tracker = self.tracker.lock().unwrap_or_else(PoisonError::into_inner);
+        tracker.clone()
+    }
+}

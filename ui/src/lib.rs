@@ -1,0 +1,16 @@
+//! The tremorscan application crate: the desktop GUI ([`gui`], with its wgpu renderers in
+//! [`render`]) and the headless subcommands of the `tremorscan` binary, all over the core
+//! library `tremorscan`. A library so that the UI tests (`ui/tests`) can drive the app.
+
+pub mod calibrate_cmd;
+pub mod demo;
+pub mod gui;
+pub mod pipeline_cmd;
+pub mod progress;
+pub mod render;
+pub mod report_png;
+pub mod session_cmd;
+pub mod simulate_calibration;
+pub mod snapshot;
+pub mod sweep;
+pub mod tremor_cmd;

@@ -1,0 +1,283 @@
+//! UI tests of the desktop app with egui_kittest on its wgpu renderer (lavapipe here): the app
+//! runs on the virtual rig as a user would see it; widgets are found by their labels, clicked,
+//! and the app's state checked.
+
+use egui_kittest::kittest::Queryable;
+use egui_kittest::Harness;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use tremorscan_ui::gui::app::TremorApp;
+use tremorscan_ui::gui::cloud_view::install_renderer;
+use tremorscan_ui::gui::settings::Settings;
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("tremorscan-gui-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
+}
+
+fn settings(dir: &std::path::Path) -> Settings {
+    Settings {
+        sessions_dir: dir.join("sessions"),
+        export_dir: dir.join("exports"),
+        countdown_seconds: 0.0,
+        ..Settings::default()
+    }
+}
+
+fn harness(settings: Settings) -> Harness<'static, TremorApp> {
+    Harness::builder()
+        .with_size(egui::vec2(1400.0, 900.0))
+        .wgpu()
+        .build_eframe(move |cc| {
+            // Kittest's wgpu pass has no depth attachment, so the renderer gets none either.
+            let has_renderer = cc.wgpu_render_state.as_ref().is_some_and(|s| {
+                install_renderer(s, None);
+                true
+            });
+            TremorApp::new(settings, None, has_renderer)
+        })
+}
+
+/// Steps the app until `done` holds, failing after `timeout`.
+fn step_until(
+    h: &mut Harness<'_, TremorApp>,
+    timeout: Duration,
+    what: &str,
+    done: impl Fn(&TremorApp) -> bool,
+) {
+    let start = Instant::now();
+    while !done(h.state()) {
+        assert!(start.elapsed() < timeout, "timed out waiting for {what}");
+        h.run_steps(1);
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+fn has_cloud(app: &TremorApp) -> bool {
+    app.source.as_ref().is_some_and(|s| s.latest.is_some())
+}
+
+#[test]
+fn clicking_the_hand_adds_a_tracked_control_point_that_can_be_renamed_and_removed() {
+    let dir = scratch("points");
+    let mut h = harness(settings(&dir));
+    step_until(
+        &mut h,
+        Duration::from_secs(120),
+        "the first cloud",
+        has_cloud,
+    );
+    h.get_by_label("camera image").click();
+    h.run_steps(2);
+    let tracker = h.state().tracker_copy();
+    assert_eq!(tracker.points.len(), 1, "one point added");
+    let (u, v) = tracker.points[0].pixel;
+    // The click lands at the middle of the image: the virtual rig's 640×400 camera.
+    assert!(
+        (u - 320.0).abs() <= 2.0 && (v - 200.0).abs() <= 2.0,
+        "pixel {u},{v}"
+    );
+    step_until(
+        &mut h,
+        Duration::from_secs(120),
+        "measured samples",
+        |app| {
+            app.tracker_copy().points[0]
+                .samples
+                .iter()
+                .filter(|s| s.position_mm.is_some())
+                .count()
+                >= 3
+        },
+    );
+    let z = h.state().tracker_copy().points[0]
+        .latest_position_mm()
+        .map(|p| p[2]);
+    // The rig's hand lies 400–650 mm from the camera.
+    assert!(
+        z.is_some_and(|z| (350.0..700.0).contains(&z)),
+        "depth {z:?}"
+    );
+    h.get_by_label("Remove").click();
+    h.run_steps(2);
+    assert!(h.state().tracker_copy().points.is_empty());
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn a_trial_is_recorded_stopped_by_hand_and_replayed() {
+    let dir = scratch("record");
+    let mut h = harness(settings(&dir));
+    step_until(
+        &mut h,
+        Duration::from_secs(120),
+        "the first cloud",
+        has_cloud,
+    );
+    h.get_by_label("manual").click();
+    h.run_steps(1);
+    h.get_by_label_contains("Record trial").click();
+    h.run_steps(2);
+    step_until(&mut h, Duration::from_secs(60), "frames recorded", |app| {
+        app.source
+            .as_ref()
+            .is_some_and(|s| s.pipeline.metrics().recorded >= 12)
+    });
+    h.get_by_label_contains("Stop recording").click();
+    h.run_steps(2);
+    let outcome = h.state().trial.last_outcome.clone().expect("an outcome");
+    assert!(outcome.starts_with("saved "), "{outcome}");
+    let session_dir = std::fs::read_dir(dir.join("sessions"))
+        .expect("sessions folder")
+        .next()
+        .expect("one session")
+        .expect("entry")
+        .path();
+    let session = tremorscan::session::Session::open(&session_dir).expect("the recording opens");
+    assert!(session.frame_count() >= 12);
+    assert!(
+        outcome.contains(&format!("saved {} frames", session.frame_count())),
+        "{outcome}"
+    );
+
+    // Replay it: paused at the start, three steps fill the first window.
+    h.state_mut().open_replay(session_dir.clone());
+    h.run_steps(1);
+    assert!(h
+        .state()
+        .source
+        .as_ref()
+        .is_some_and(|s| s.playback.is_some()));
+    for _ in 0..3 {
+        h.get_by_label("Step").click();
+        h.run_steps(1);
+    }
+    step_until(
+        &mut h,
+        Duration::from_secs(60),
+        "the replayed cloud",
+        has_cloud,
+    );
+    let shown = h
+        .state()
+        .source
+        .as_ref()
+        .and_then(|s| s.playback.as_ref())
+        .and_then(|p| p.state().shown_frame);
+    assert_eq!(shown, Some(2));
+    h.get_by_label_contains("Play").click();
+    step_until(
+        &mut h,
+        Duration::from_secs(60),
+        "the replay to reach its end",
+        |app| {
+            app.source
+                .as_ref()
+                .and_then(|s| s.playback.as_ref())
+                .is_some_and(|p| p.state().shown_frame == Some(session.frame_count() - 1))
+        },
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn the_colour_wizard_captures_ten_colours_fits_and_saves() {
+    let dir = scratch("colour");
+    let mut h = harness(settings(&dir));
+    h.get_by_label("Colour calibration…").click();
+    h.run_steps(2);
+    h.get_by_label("Next: capture colours").click();
+    h.run_steps(2);
+    for _ in 0..10 {
+        h.get_by_label("Capture colour").click();
+        h.run_steps(2);
+    }
+    let wizard = h.state().colour_wizard.as_ref().expect("wizard open");
+    let fit = wizard
+        .result
+        .as_ref()
+        .expect("a fit")
+        .as_ref()
+        .expect("the fit succeeds");
+    // The rig's own cross-talk is what the captures encode; noise leaves a fraction of a level.
+    assert!(
+        fit.residual_rms_gray < 3.0,
+        "residual {}",
+        fit.residual_rms_gray
+    );
+    h.get_by_label("Save colour calibration").click();
+    h.run_steps(2);
+    let saved = h
+        .state()
+        .settings
+        .colour_file
+        .clone()
+        .expect("the app uses the saved file");
+    assert!(saved.is_file());
+    assert!(h.state().colour_wizard.is_none());
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn the_geometric_wizard_calibrates_from_poses_and_recomputes_without_a_dropped_view() {
+    let dir = scratch("geometric");
+    let mut h = harness(settings(&dir));
+    h.get_by_label("Geometric calibration…").click();
+    h.run_steps(2);
+    h.get_by_label("Next: capture poses").click();
+    h.run_steps(2);
+    for _ in 0..6 {
+        h.get_by_label("Capture pose").click();
+        h.run_steps(2);
+    }
+    let w = h.state().geometric_wizard.as_ref().expect("wizard open");
+    assert_eq!(w.views.len(), 6, "every pose found: {:?}", w.last_error);
+    h.get_by_label("Calibrate").click();
+    h.run_steps(2);
+    let first = {
+        let w = h.state().geometric_wizard.as_ref().expect("wizard open");
+        let c = w
+            .result
+            .as_ref()
+            .expect("result")
+            .as_ref()
+            .expect("calibrated");
+        assert_eq!(c.views.len(), 6);
+        c.camera_rms_px
+    };
+    h.state_mut()
+        .geometric_wizard
+        .as_mut()
+        .expect("wizard")
+        .dropped[0] = true;
+    h.get_by_label("Recompute").click();
+    h.run_steps(2);
+    {
+        let w = h.state().geometric_wizard.as_ref().expect("wizard open");
+        let c = w
+            .result
+            .as_ref()
+            .expect("result")
+            .as_ref()
+            .expect("calibrated");
+        assert_eq!(c.views.len(), 5, "view 1 dropped");
+        assert!(c.views.iter().all(|v| v.view != 0));
+        assert!(
+            c.camera_rms_px < 0.5 && first < 0.5,
+            "RMS {first} then {}",
+            c.camera_rms_px
+        );
+    }
+    h.get_by_label("Save calibration").click();
+    h.run_steps(2);
+    let saved = h
+        .state()
+        .settings
+        .calibration_file
+        .clone()
+        .expect("the app uses the saved file");
+    assert!(tremorscan::calibrate::CalibrationFile::load(&saved).is_ok());
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -1,0 +1,64 @@
+//! Every WGSL file in `shaders/` parses and validates with naga (the compiler wgpu uses), and
+//! the point shader's structs have the sizes the `#[repr(C)]` Rust structs have.
+
+use std::path::PathBuf;
+
+fn shaders() -> Vec<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shaders");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .expect("shaders folder")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "wgsl"))
+        .collect();
+    files.sort();
+    files
+}
+
+fn validate(path: &PathBuf) -> naga::Module {
+    let source = std::fs::read_to_string(path).expect("read shader");
+    let module = naga::front::wgsl::parse_str(&source)
+        .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(&source)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("{}: {e:?}", path.display()));
+    module
+}
+
+#[test]
+fn every_shader_validates() {
+    let files = shaders();
+    assert!(!files.is_empty(), "no shaders found");
+    for path in &files {
+        validate(path);
+    }
+}
+
+#[test]
+fn the_point_shader_matches_its_rust_structs() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shaders/point_cloud.wgsl");
+    let module = validate(&path);
+    let layouter = {
+        let mut l = naga::proc::Layouter::default();
+        l.update(module.to_ctx()).expect("layout");
+        l
+    };
+    let uniforms = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some("PointUniforms"))
+        .map(|(h, _)| h)
+        .expect("PointUniforms in the shader");
+    assert_eq!(
+        layouter[uniforms].size as usize,
+        std::mem::size_of::<tremorscan_ui::render::point_cloud::PointUniforms>()
+    );
+    for entry in ["vs_main", "fs_main"] {
+        assert!(
+            module.entry_points.iter().any(|e| e.name == entry),
+            "entry point {entry}"
+        );
+    }
+}
