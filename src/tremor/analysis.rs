@@ -96,6 +96,14 @@ pub fn analyze(
         valid: displacement_mm.iter().flatten().count(),
     })?;
     let fs = series.rate_hz;
+    // Above Nyquist the band would fold back onto itself: refuse rather than report aliases.
+    if fs < 2.0 * options.band_hz.1 {
+        return Err(TremorError::RateTooLow {
+            rate_hz: fs,
+            band_hi_hz: options.band_hz.1,
+            needed_hz: 2.0 * options.band_hz.1,
+        });
+    }
     let mut x = series.values.clone();
     detrend_linear(&mut x);
     let duration_s = x.len() as f64 / fs;
@@ -258,6 +266,18 @@ fn cycle_frequency_spread(y: &[f64], fs: f64) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_series_sampled_below_twice_the_band_is_refused() {
+        // 10 Hz sampling: the 3–12 Hz band needs at least 24 Hz.
+        let times: Vec<f64> = (0..100).map(|i| i as f64 / 10.0).collect();
+        let values: Vec<Option<f64>> = times.iter().map(|t| Some((5.3 * t).sin())).collect();
+        let e = analyze(&times, &values, &AnalysisOptions::default());
+        assert!(
+            matches!(e, Err(TremorError::RateTooLow { rate_hz, .. }) if (rate_hz - 10.0).abs() < 0.1),
+            "{e:?}"
+        );
+    }
 
     /// Synthetic series are exact: no decode window to compensate.
     fn exact() -> AnalysisOptions {

@@ -24,4 +24,12 @@ pub enum TremorError {
     TooFewSamples { valid: usize },
     #[error("the record is {duration_s:.2} s long, too short for a spectrum")]
     TooShort { duration_s: f64 },
+    #[error(
+        "samples come at {rate_hz:.1} Hz, too slow for the {band_hi_hz} Hz band (at least {needed_hz} Hz is needed)"
+    )]
+    RateTooLow {
+        rate_hz: f64,
+        band_hi_hz: f64,
+        needed_hz: f64,
+    },
 }

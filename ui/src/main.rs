@@ -26,7 +26,7 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Open the desktop application (the default when no command is given).
-    Gui,
+    Gui(gui::GuiArgs),
     /// Stream the virtual rig (a trembling hand) through the decoder and print live figures.
     Demo(demo::DemoArgs),
     /// Sweep camera noise and tabulate unwrap failures and RMS error for each unwrap method.
@@ -71,7 +71,8 @@ fn main() -> std::process::ExitCode {
 fn run() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        Some(Command::Gui) | None => gui::run(),
+        Some(Command::Gui(args)) => gui::run(&args),
+        None => gui::run(&gui::GuiArgs::default()),
         Some(Command::Demo(args)) => demo::run(&args),
         Some(Command::Sweep(args)) => sweep::run(&args),
         Some(Command::Snapshot(args)) => snapshot::run(&args),

@@ -100,6 +100,12 @@ fn clicking_the_hand_adds_a_tracked_control_point_that_can_be_renamed_and_remove
         z.is_some_and(|z| (350.0..700.0).contains(&z)),
         "depth {z:?}"
     );
+    // Rename through the list: the name field is labelled by the point's number.
+    h.get_by_label("#1").focus();
+    h.run_steps(1);
+    h.get_by_label("#1").type_text(" index tip");
+    h.run_steps(2);
+    assert_eq!(h.state().tracker_copy().points[0].name, "P1 index tip");
     h.get_by_label("Remove").click();
     h.run_steps(2);
     assert!(h.state().tracker_copy().points.is_empty());
@@ -143,8 +149,12 @@ fn a_trial_is_recorded_stopped_by_hand_and_replayed() {
     );
 
     // Replay it: paused at the start, three steps fill the first window.
-    h.state_mut().open_replay(session_dir.clone());
+    h.get_by_label("Session:").focus();
     h.run_steps(1);
+    h.get_by_label("Session:").type_text(&session_dir.display().to_string());
+    h.run_steps(1);
+    h.get_by_label("Open replay").click();
+    h.run_steps(2);
     assert!(h
         .state()
         .source
@@ -179,6 +189,15 @@ fn a_trial_is_recorded_stopped_by_hand_and_replayed() {
                 .is_some_and(|p| p.state().shown_frame == Some(session.frame_count() - 1))
         },
     );
+    // Control points set in the replay are saved with the session.
+    h.get_by_label("camera image").click();
+    h.run_steps(2);
+    h.get_by_label("Save control points to session").click();
+    h.run_steps(2);
+    let reopened = tremorscan::session::Session::open(&session_dir).expect("reopen");
+    let saved = reopened.manifest.trial.expect("trial").control_points;
+    assert_eq!(saved.len(), 1);
+    assert_eq!(saved[0].name, "P1");
     let _ = std::fs::remove_dir_all(dir);
 }
 

@@ -210,12 +210,14 @@ impl TremorApp {
                     self.open_replay(dir);
                 }
             }
+            let l = ui.label("Session:");
             ui.add(
                 egui::TextEdit::singleline(&mut self.replay_path)
                     .hint_text("session folder")
                     .desired_width(180.0)
                     .id_salt("replay_path"),
-            );
+            )
+            .labelled_by(l.id);
             if ui.button("Open replay").clicked() && !self.replay_path.trim().is_empty() {
                 self.open_replay(PathBuf::from(self.replay_path.trim()));
             }
@@ -310,9 +312,8 @@ impl TremorApp {
     /// One frame of the whole window.
     pub fn frame_ui(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
-        let mut new_cloud = false;
         if let Some(source) = &mut self.source {
-            new_cloud = source.poll();
+            source.poll();
             self.messages.pipeline_events(source.pipeline.events());
             let mut notes = Vec::new();
             self.trial.tick(source, &mut notes);
@@ -338,7 +339,7 @@ impl TremorApp {
             let metrics = self.source.as_ref().map(|s| s.pipeline.metrics());
             let recording = match &self.trial.state {
                 TrialState::Recording { dir, started, .. } => Some(format!(
-                    "● REC {:.1} s → {}",
+                    "REC {:.1} s to {}",
                     started.elapsed().as_secs_f64(),
                     dir.display()
                 )),
@@ -406,7 +407,6 @@ impl TremorApp {
         self.wizards_ui(&ctx);
         super::settings_ui::settings_window_ui(&ctx, self);
         status_ui::message_log_ui(&ctx, &mut self.messages);
-        let _ = new_cloud;
         // About 30 repaints a second: the pipeline is polled, not waited on (software rendering
         // would otherwise take the cores that decode needs).
         ctx.request_repaint_after(std::time::Duration::from_millis(33));

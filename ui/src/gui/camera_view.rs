@@ -141,8 +141,9 @@ impl CameraView {
             }
             self.mode = Some(mode);
             if mode != ImageMode::Raw {
-                ui.colored_label(INVALID, "■")
-                    .on_hover_text("invalid pixels");
+                let (rect, _) = ui.allocate_exact_size(Vec2::splat(12.0), Sense::hover());
+                ui.painter().rect_filled(rect, 2.0, INVALID);
+                ui.label("invalid");
             }
         });
         let Some(frame) = frame else {

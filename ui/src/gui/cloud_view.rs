@@ -80,6 +80,8 @@ pub struct CloudView {
     uploaded: Option<u64>,
     /// Whether a wgpu renderer was installed (false under a renderer without wgpu).
     pub has_renderer: bool,
+    /// Radius of the cloud to fit into the view at the next draw (when the view's size is known).
+    fit_radius_mm: Option<f32>,
 }
 
 impl CloudView {
@@ -90,14 +92,15 @@ impl CloudView {
             packed: Arc::new(Vec::new()),
             uploaded: None,
             has_renderer,
+            fit_radius_mm: None,
         }
     }
 
     /// A view of `frame` from `preset`, centred on its valid points.
     pub fn reset(&mut self, frame: Option<&CloudFrame>, preset: ViewPreset) {
-        let target = frame
-            .and_then(|f| centroid(&f.cloud.point_in_camera_mm))
-            .unwrap_or(Vector3::new(0.0, 0.0, 500.0));
+        let points = frame.map_or(&[][..], |f| &f.cloud.point_in_camera_mm[..]);
+        let target = centroid(points).unwrap_or(Vector3::new(0.0, 0.0, 500.0));
+        self.fit_radius_mm = Some(radius_about(points, &target).unwrap_or(200.0));
         self.camera = Some(OrbitCamera::new(preset, target, 750.0));
     }
 
@@ -109,7 +112,7 @@ impl CloudView {
         colours: &mut PointColours,
         edits: &mut Vec<PointEdit>,
     ) {
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("3D:");
             if ui.button("Reset view").clicked() {
                 self.reset(frame, ViewPreset::Top);
@@ -120,7 +123,14 @@ impl CloudView {
             if ui.button("Side").clicked() {
                 self.reset(frame, ViewPreset::Side);
             }
-            ui.add(egui::Slider::new(&mut self.point_size_px, 1.0..=6.0).text("point px"));
+            let l = ui.label("point size");
+            ui.add(
+                egui::DragValue::new(&mut self.point_size_px)
+                    .range(1.0..=6.0)
+                    .speed(0.1)
+                    .suffix(" px"),
+            )
+            .labelled_by(l.id);
             if let Some(f) = frame {
                 ui.label(format!(
                     "{} points",
@@ -131,8 +141,10 @@ impl CloudView {
         if self.camera.is_none() && frame.is_some() {
             self.reset(frame, ViewPreset::Top);
         }
-        let size = ui.available_size().max(Vec2::splat(50.0));
-        let (rect, response) = ui.allocate_exact_size(size, Sense::click_and_drag());
+        // What is left of the column and visible: the projection is centred on this rect.
+        let rect = ui.available_rect_before_wrap().intersect(ui.clip_rect());
+        let rect = egui::Rect::from_min_size(rect.min, rect.size().max(Vec2::splat(50.0)));
+        let response = ui.allocate_rect(rect, Sense::click_and_drag());
         ui.painter().rect_filled(rect, 0.0, Color32::from_gray(18));
         let Some(camera) = &mut self.camera else {
             ui.painter().text(
@@ -144,6 +156,13 @@ impl CloudView {
             );
             return;
         };
+        if let Some(radius) = self.fit_radius_mm.take() {
+            // Far enough that a sphere of `radius` fits the narrower of the two fields of view.
+            let half_y = camera.fov_y_rad / 2.0;
+            let aspect = rect.width() / rect.height().max(1.0);
+            let half_x = (aspect * half_y.tan()).atan();
+            camera.distance_mm = radius / half_y.min(half_x).sin().max(0.05);
+        }
         if response.dragged_by(PointerButton::Primary) {
             let d = response.drag_delta();
             camera.orbit(d.x, d.y);
@@ -232,6 +251,22 @@ impl CloudView {
             "Drag: orbit · right/middle drag: pan · scroll: zoom · click: add a control point",
         );
     }
+}
+
+/// The distance from `centre` within which 95 % of the valid points lie (every 7th point), mm.
+fn radius_about(points: &[[f32; 3]], centre: &Vector3<f32>) -> Option<f32> {
+    let mut d: Vec<f32> = points
+        .iter()
+        .step_by(7)
+        .filter(|p| p[2].is_finite())
+        .map(|p| (Vector3::new(p[0], p[1], p[2]) - centre).norm())
+        .collect();
+    if d.is_empty() {
+        return None;
+    }
+    let k = (d.len() * 95 / 100).min(d.len() - 1);
+    let (_, r, _) = d.select_nth_unstable_by(k, f32::total_cmp);
+    Some(*r)
 }
 
 /// Mean of the valid points (every 7th, enough for a view centre), mm.

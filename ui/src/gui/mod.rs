@@ -21,8 +21,34 @@ pub mod wizard_geometric;
 
 use anyhow::{anyhow, Result};
 
+/// Options of `tremorscan gui`.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct GuiArgs {
+    /// Start with a control point at camera pixel `U,V` (repeatable).
+    #[arg(long = "point", value_name = "U,V")]
+    pub points: Vec<String>,
+}
+
+/// Parses `U,V` into a pixel.
+fn parse_pixel(text: &str) -> Result<(f64, f64)> {
+    let parts: Vec<f64> = text
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| anyhow!("--point {text}: expected U,V (two numbers)"))?;
+    match parts.as_slice() {
+        [u, v] if u.is_finite() && v.is_finite() => Ok((*u, *v)),
+        _ => Err(anyhow!("--point {text}: expected U,V (two numbers)")),
+    }
+}
+
 /// Opens the main window on the device of the saved settings (the virtual rig by default).
-pub fn run() -> Result<()> {
+pub fn run(args: &GuiArgs) -> Result<()> {
+    let points = args
+        .points
+        .iter()
+        .map(|p| parse_pixel(p))
+        .collect::<Result<Vec<_>>>()?;
     let path = settings::default_path();
     let (settings, problem) = settings::load(&path);
     let options = eframe::NativeOptions {
@@ -50,6 +76,12 @@ pub fn run() -> Result<()> {
             if let Some(problem) = problem {
                 app.messages.error(problem);
             }
+            app.apply_edits(
+                points
+                    .into_iter()
+                    .map(|pixel| points::PointEdit::Add { pixel })
+                    .collect(),
+            );
             Ok(Box::new(app))
         }),
     )

@@ -105,17 +105,18 @@ pub fn points_list_ui(
         .num_columns(4)
         .striped(true)
         .show(ui, |ui| {
-            for p in &tracker.points {
+            for (k, p) in tracker.points.iter().enumerate() {
                 let colour = colours.colour(p.id);
-                let (rect, _) =
-                    ui.allocate_exact_size(egui::vec2(12.0, 12.0), egui::Sense::hover());
-                ui.painter().circle_filled(rect.center(), 6.0, colour);
+                let tag =
+                    ui.colored_label(colour, egui::RichText::new(format!("#{}", k + 1)).strong());
                 let mut name = p.name.clone();
-                let edit = ui.add(
-                    egui::TextEdit::singleline(&mut name)
-                        .desired_width(90.0)
-                        .id_salt(("point_name", p.id)),
-                );
+                let edit = ui
+                    .add(
+                        egui::TextEdit::singleline(&mut name)
+                            .desired_width(90.0)
+                            .id_salt(("point_name", p.id)),
+                    )
+                    .labelled_by(tag.id);
                 if edit.changed() {
                     edits.push(PointEdit::Rename { id: p.id, name });
                 }

@@ -9,9 +9,7 @@ const SPEEDS: [f64; 5] = [0.1, 0.25, 0.5, 1.0, 2.0];
 
 /// Draws the controls; returns a message for the status bar when something happened.
 pub fn replay_ui(ui: &mut egui::Ui, source: &mut Source) -> Option<String> {
-    let Some(control) = source.playback.clone() else {
-        return None;
-    };
+    let control = source.playback.clone()?;
     ui.heading("Replay");
     let state = control.state();
     let count = control.frame_count();
@@ -21,7 +19,7 @@ pub fn replay_ui(ui: &mut egui::Ui, source: &mut Source) -> Option<String> {
             if ui.button("Pause").clicked() {
                 control.pause();
             }
-        } else if ui.button("▶ Play").clicked() {
+        } else if ui.button("Play").clicked() {
             control.play();
         }
         if ui

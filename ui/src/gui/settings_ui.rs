@@ -29,15 +29,18 @@ pub fn settings_window_ui(ctx: &egui::Context, app: &mut TremorApp) {
                 ui.label("Real devices (GenICam camera, LightCrafter 4500, second screen) appear here when the app is built with their features.");
             });
             ui.end_row();
-            ui.label("Virtual camera");
+            let l = ui.label("Virtual camera");
             ui.horizontal(|ui| {
-                ui.add(egui::DragValue::new(&mut d.rig_width).range(64..=1920).suffix(" px"));
+                ui.add(egui::DragValue::new(&mut d.rig_width).range(64..=1920).suffix(" px"))
+                    .labelled_by(l.id);
                 ui.label("×");
-                ui.add(egui::DragValue::new(&mut d.rig_height).range(40..=1200).suffix(" px"));
+                ui.add(egui::DragValue::new(&mut d.rig_height).range(40..=1200).suffix(" px"))
+                    .labelled_by(l.id);
             });
             ui.end_row();
-            ui.label("Fringes n");
+            let l = ui.label("Fringes n");
             ui.add(egui::DragValue::new(&mut d.fringe_count).range(3..=200))
+                .labelled_by(l.id)
                 .on_hover_text("the highest of the three frequencies n, n−1, n−2");
             ui.end_row();
             ui.label("Coded axis");
@@ -46,8 +49,9 @@ pub fn settings_window_ui(ctx: &egui::Context, app: &mut TremorApp) {
                 ui.radio_value(&mut d.code_columns, false, "rows");
             });
             ui.end_row();
-            ui.label("Projector bits");
-            ui.add(egui::DragValue::new(&mut d.projector_bits).range(1..=8));
+            let l = ui.label("Projector bits");
+            ui.add(egui::DragValue::new(&mut d.projector_bits).range(1..=8))
+                .labelled_by(l.id);
             ui.end_row();
             ui.label("Unwrapping");
             ui.horizontal(|ui| {

@@ -17,7 +17,7 @@ use std::thread::JoinHandle;
 use tremorscan::calibrate::file::{CalibrationFile, ColourFile};
 use tremorscan::device::{Pacing, PlaybackCamera, PlaybackControl, VirtualCamera};
 use tremorscan::pattern::{cps_rgb, Axis, PatternSequence};
-use tremorscan::pipeline::{CloudFrame, Pipeline, PipelineConfig};
+use tremorscan::pipeline::{CloudFrame, DecodePolicy, Pipeline, PipelineConfig};
 use tremorscan::rig::{RigConfig, VirtualRig};
 use tremorscan::session::{Manifest, Session};
 use tremorscan::tremor::LiveTracker;
@@ -66,7 +66,12 @@ pub fn virtual_rig(settings: &Settings) -> Result<VirtualRig> {
 impl Source {
     /// Starts the device of `settings` with its tracker, keeping the points of `tracker`.
     pub fn start(settings: &Settings, tracker: LiveTracker) -> Result<Self> {
+        // Simulated and recorded sources have no real time to keep: capture waits for decode, so
+        // every window is decoded and the tremor is sampled at the full scene rate (a slower PC
+        // plays them in slow motion, shown by the status bar's rates). A real camera uses
+        // `DecodePolicy::RealTime`.
         let config = PipelineConfig {
+            decode_policy: DecodePolicy::Lossless,
             consumer_queue: TRACKER_QUEUE,
             decode_params: tremorscan::decode::DecodeParams {
                 unwrap: settings.unwrap.method(),

@@ -173,8 +173,9 @@ impl TrialForm {
         let can_record = source.is_some_and(|s| s.recording_manifest.is_some());
         ui.add_enabled_ui(!self.is_busy(), |ui| {
             egui::Grid::new("trial_form").num_columns(2).show(ui, |ui| {
-                ui.label("Subject id");
-                ui.add(egui::TextEdit::singleline(&mut self.subject).id_salt("subject"));
+                let l = ui.label("Subject id");
+                ui.add(egui::TextEdit::singleline(&mut self.subject).id_salt("subject"))
+                    .labelled_by(l.id);
                 ui.end_row();
                 ui.label("Hand");
                 ui.horizontal(|ui| {
@@ -182,15 +183,17 @@ impl TrialForm {
                     ui.selectable_value(&mut self.hand, "right".to_string(), "right");
                 });
                 ui.end_row();
-                ui.label("Condition");
-                ui.add(egui::TextEdit::singleline(&mut self.condition).id_salt("condition"));
+                let l = ui.label("Condition");
+                ui.add(egui::TextEdit::singleline(&mut self.condition).id_salt("condition"))
+                    .labelled_by(l.id);
                 ui.end_row();
-                ui.label("Notes");
+                let l = ui.label("Notes");
                 ui.add(
                     egui::TextEdit::multiline(&mut self.notes)
                         .desired_rows(2)
                         .id_salt("notes"),
-                );
+                )
+                .labelled_by(l.id);
                 ui.end_row();
                 ui.label("Duration");
                 ui.horizontal(|ui| {
@@ -205,15 +208,20 @@ impl TrialForm {
                 });
                 ui.end_row();
                 ui.label("Countdown");
-                ui.add(egui::Slider::new(&mut self.countdown_s, 0.0..=10.0).suffix(" s"));
+                ui.add(
+                    egui::Slider::new(&mut self.countdown_s, 0.0..=10.0)
+                        .suffix(" s")
+                        .text("before recording"),
+                );
                 ui.end_row();
-                ui.label("Folder");
+                let l = ui.label("Folder");
                 ui.horizontal(|ui| {
                     ui.add(
                         egui::TextEdit::singleline(&mut self.sessions_dir)
                             .desired_width(150.0)
                             .id_salt("sessions_dir"),
-                    );
+                    )
+                    .labelled_by(l.id);
                     if ui.button("Choose…").clicked() {
                         if let Some(dir) = rfd::FileDialog::new()
                             .set_title("Folder for recorded trials")
@@ -231,7 +239,7 @@ impl TrialForm {
         };
         match self.state.clone() {
             TrialState::Idle => {
-                let button = ui.add_enabled(can_record, egui::Button::new("● Record trial"));
+                let button = ui.add_enabled(can_record, egui::Button::new("Record trial"));
                 if !can_record {
                     button.on_disabled_hover_text(
                         "Recording needs a live device (the virtual rig or a camera)",
@@ -271,13 +279,13 @@ impl TrialForm {
                     .metrics()
                     .recorded
                     .saturating_sub(recorded_before);
-                let text = format!("● REC {elapsed:.1} s · {frames} frames");
+                let text = format!("REC {elapsed:.1} s · {frames} frames");
                 if self.duration_s > 0.0 {
                     ui.add(egui::ProgressBar::new((elapsed / self.duration_s) as f32).text(text));
                 } else {
                     ui.colored_label(egui::Color32::RED, text);
                 }
-                if ui.button("■ Stop recording").clicked() {
+                if ui.button("Stop recording").clicked() {
                     self.stop(source);
                 }
             }

@@ -219,12 +219,13 @@ pub fn colour_wizard_ui(ui: &mut egui::Ui, w: &mut ColourWizard) -> WizardOutcom
                         );
                     }
                     ui.horizontal(|ui| {
-                        ui.label("Save to");
+                        let l = ui.label("Save to");
                         ui.add(
                             egui::TextEdit::singleline(&mut w.save_path)
                                 .desired_width(260.0)
                                 .id_salt("colour_save_path"),
-                        );
+                        )
+                        .labelled_by(l.id);
                     });
                     ui.horizontal(|ui| {
                         if ui.button("Save colour calibration").clicked() {

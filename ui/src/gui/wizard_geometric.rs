@@ -60,7 +60,7 @@ impl GeometricWizard {
     /// Captures the next pose (both axes) and finds the board in it.
     pub fn capture_pose(&mut self) -> Result<usize, String> {
         let poses = standard_poses();
-        let board = poses[self.poses_taken % poses.len()].clone();
+        let board = poses[self.poses_taken % poses.len()];
         let view = self.poses_taken;
         self.poses_taken += 1;
         let (capture, _) =
@@ -175,18 +175,21 @@ pub fn geometric_wizard_ui(ui: &mut egui::Ui, w: &mut GeometricWizard) -> Wizard
         GeometricStep::Board => {
             ui.label("Step 1 of 3: the printed chessboard (count inner corners).");
             egui::Grid::new("board_geometry").show(ui, |ui| {
-                ui.label("inner corners across");
-                ui.add(egui::DragValue::new(&mut w.board.cols).range(3..=30));
+                let l = ui.label("inner corners across");
+                ui.add(egui::DragValue::new(&mut w.board.cols).range(3..=30))
+                    .labelled_by(l.id);
                 ui.end_row();
-                ui.label("inner corners down");
-                ui.add(egui::DragValue::new(&mut w.board.rows).range(3..=30));
+                let l = ui.label("inner corners down");
+                ui.add(egui::DragValue::new(&mut w.board.rows).range(3..=30))
+                    .labelled_by(l.id);
                 ui.end_row();
-                ui.label("square size");
+                let l = ui.label("square size");
                 ui.add(
                     egui::DragValue::new(&mut w.board.square_mm)
                         .range(1.0..=200.0)
                         .suffix(" mm"),
-                );
+                )
+                .labelled_by(l.id);
                 ui.end_row();
             });
             if ui.button("Next: capture poses").clicked() {
@@ -294,12 +297,13 @@ fn review_ui(ui: &mut egui::Ui, w: &mut GeometricWizard, outcome: &mut WizardOut
     });
     if matches!(w.result, Some(Ok(_))) {
         ui.horizontal(|ui| {
-            ui.label("Save to");
+            let l = ui.label("Save to");
             ui.add(
                 egui::TextEdit::singleline(&mut w.save_path)
                     .desired_width(260.0)
                     .id_salt("geometric_save_path"),
-            );
+            )
+            .labelled_by(l.id);
         });
         if ui.button("Save calibration").clicked() {
             match w.save() {
