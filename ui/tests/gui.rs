@@ -151,7 +151,8 @@ fn a_trial_is_recorded_stopped_by_hand_and_replayed() {
     // Replay it: paused at the start, three steps fill the first window.
     h.get_by_label("Session:").focus();
     h.run_steps(1);
-    h.get_by_label("Session:").type_text(&session_dir.display().to_string());
+    h.get_by_label("Session:")
+        .type_text(&session_dir.display().to_string());
     h.run_steps(1);
     h.get_by_label("Open replay").click();
     h.run_steps(2);
