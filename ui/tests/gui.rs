@@ -301,3 +301,82 @@ fn the_geometric_wizard_calibrates_from_poses_and_recomputes_without_a_dropped_v
     assert!(tremorscan::calibrate::CalibrationFile::load(&saved).is_ok());
     let _ = std::fs::remove_dir_all(dir);
 }
+
+#[test]
+fn a_missing_session_is_a_message_not_a_crash_and_the_rig_comes_back() {
+    let dir = scratch("missing");
+    let mut h = harness(settings(&dir));
+    h.get_by_label("Session:").focus();
+    h.run_steps(1);
+    h.get_by_label("Session:")
+        .type_text(&dir.join("no-such-session").display().to_string());
+    h.run_steps(1);
+    h.get_by_label("Open replay").click();
+    h.run_steps(2);
+    assert!(h.state().source.is_none());
+    let (_, _, text) = h.state().messages.latest().expect("a message").clone();
+    assert!(text.contains("no-such-session"), "{text}");
+    h.get_by_label("Virtual rig").click();
+    h.run_steps(2);
+    step_until(&mut h, Duration::from_secs(120), "the rig again", has_cloud);
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn settings_apply_a_new_pattern_and_a_point_can_be_dragged() {
+    let dir = scratch("settings");
+    let mut h = harness(settings(&dir));
+    h.get_by_label("Settings…").click();
+    h.run_steps(2);
+    h.get_by_label("rows").click();
+    h.run_steps(1);
+    h.get_by_label("per pixel (paper)").click();
+    h.run_steps(1);
+    h.get_by_label("Apply").click();
+    h.run_steps(2);
+    assert!(!h.state().settings.code_columns);
+    step_until(
+        &mut h,
+        Duration::from_secs(120),
+        "a cloud coded along rows",
+        has_cloud,
+    );
+    let valid = h
+        .state()
+        .source
+        .as_ref()
+        .and_then(|s| s.latest.as_ref())
+        .map_or(0, |c| c.cloud.valid_count());
+    assert!(
+        valid > 10_000,
+        "{valid} valid points decoded from row coding"
+    );
+
+    // Add a point at the image centre, then drag its marker 40 screen points to the right.
+    h.get_by_label("camera image").click();
+    h.run_steps(2);
+    let rect = h.get_by_label("camera image").rect();
+    let start = rect.center();
+    h.drag_at(start);
+    h.run_steps(1);
+    h.hover_at(start + egui::vec2(20.0, 0.0));
+    h.run_steps(1);
+    h.hover_at(start + egui::vec2(40.0, 0.0));
+    h.run_steps(1);
+    h.drop_at(start + egui::vec2(40.0, 0.0));
+    h.run_steps(2);
+    let points = h.state().tracker_copy().points;
+    assert_eq!(
+        points.len(),
+        1,
+        "the drag moved the point, it did not add one"
+    );
+    let scale = 640.0 / rect.width() as f64;
+    let moved = points[0].pixel.0 - 320.0;
+    assert!(
+        (moved - 40.0 * scale).abs() <= 2.0,
+        "moved {moved} px, expected {}",
+        40.0 * scale
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -194,7 +194,9 @@ impl CameraView {
             (u.clamp(0.0, w as f64 - 1.0), v.clamp(0.0, h as f64 - 1.0))
         };
         if response.drag_started() {
-            if let Some(at) = response.interact_pointer_pos() {
+            // Where the button went down: a drag only starts once the pointer has moved.
+            let origin = ui.input(|i| i.pointer.press_origin());
+            if let Some(at) = origin.or(response.interact_pointer_pos()) {
                 self.dragging = tracker
                     .points
                     .iter()

@@ -151,3 +151,118 @@ pub fn save_screenshot(path: &Path, image: &egui::ColorImage) -> Result<String> 
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(format!("saved the screenshot to {}", path.display()))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tremorscan::triangulate::PointCloud;
+
+    /// A tracker fed `seconds` of flat clouds at 121 Hz whose depth trembles by `amplitude_mm`
+    /// at 5.3 Hz.
+    fn trembling_tracker(seconds: f64, amplitude_mm: f64) -> LiveTracker {
+        let mut t = LiveTracker::new(5.0);
+        t.add("index, tip", (4.0, 4.0));
+        let (w, h) = (10, 10);
+        for k in 0..(seconds * 121.0) as usize {
+            let time_s = k as f64 / 121.0;
+            let z = 500.0 + amplitude_mm * (std::f64::consts::TAU * 5.3 * time_s).sin();
+            let cloud = PointCloud {
+                width: w,
+                height: h,
+                time_s,
+                point_in_camera_mm: vec![[0.0, 0.0, z as f32]; w * h],
+                colour_rgb: vec![[200, 150, 120]; w * h],
+                fringe_amplitude: vec![1.0; w * h],
+            };
+            t.update(&cloud, k);
+        }
+        t
+    }
+
+    fn flat(w: usize, h: usize) -> PointCloud {
+        PointCloud {
+            width: w,
+            height: h,
+            time_s: 0.0,
+            point_in_camera_mm: vec![[0.0, 0.0, 500.0]; w * h],
+            colour_rgb: vec![[0, 0, 0]; w * h],
+            fringe_amplitude: vec![1.0; w * h],
+        }
+    }
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("tremorscan-export-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch");
+        dir
+    }
+
+    #[test]
+    fn the_track_csv_has_a_row_per_sample_and_the_report_finds_the_tremor() {
+        let dir = scratch("track");
+        let tracker = trembling_tracker(4.0, 1.0);
+        export_track(&dir.join("t.csv"), &tracker).expect("csv");
+        let csv = std::fs::read_to_string(dir.join("t.csv")).expect("read");
+        let rows: Vec<&str> = csv.lines().collect();
+        assert!(rows[0].starts_with("time_s,frame,point,u,v,"));
+        assert_eq!(rows.len() - 1, tracker.points[0].samples.len());
+        // The comma in the name does not split the row.
+        assert_eq!(rows[1].split(',').count(), rows[0].split(',').count());
+
+        export_report(&dir.join("r.png"), &tracker).expect("report");
+        assert!(dir.join("r.png").is_file());
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("r.json")).expect("json"))
+                .expect("parse");
+        let f = json[0]["peak_frequency_hz"].as_f64().expect("a peak");
+        assert!((f - 5.3).abs() < 0.05, "peak {f}");
+        assert_eq!(json[0]["name"], "index, tip");
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[test]
+    fn exports_without_data_say_why() {
+        let dir = scratch("empty");
+        let empty = LiveTracker::new(5.0);
+        let e = export_track(&dir.join("t.csv"), &empty).expect_err("no points");
+        assert!(e.to_string().contains("no control points"));
+        let e = export_cloud(&dir.join("c.ply"), None).expect_err("no cloud");
+        assert!(e.to_string().contains("no decoded cloud"));
+        // A point never measured (off the cloud) is refused with the reason, naming the point.
+        let mut unmeasured = trembling_tracker(3.0, 1.0);
+        let id = unmeasured.points[0].id;
+        unmeasured.move_to(id, (50.0, 50.0));
+        unmeasured.update(
+            &PointCloud {
+                time_s: 4.0,
+                ..flat(10, 10)
+            },
+            0,
+        );
+        let e = export_report(&dir.join("r.png"), &unmeasured).expect_err("no samples");
+        let text = format!("{e:#}");
+        assert!(
+            text.contains("index, tip") && text.contains("valid samples"),
+            "{text}"
+        );
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[test]
+    fn a_screenshot_is_saved_as_a_png_of_the_same_pixels() {
+        let dir = scratch("shot");
+        let mut image = egui::ColorImage::new([3, 2], vec![egui::Color32::from_rgb(10, 20, 30); 6]);
+        image.pixels[4] = egui::Color32::from_rgb(200, 0, 100);
+        save_screenshot(&dir.join("s.png"), &image).expect("save");
+        let decoder = png::Decoder::new(std::io::BufReader::new(
+            std::fs::File::open(dir.join("s.png")).expect("open"),
+        ));
+        let mut reader = decoder.read_info().expect("info");
+        let mut buf = vec![0; reader.output_buffer_size().expect("size")];
+        let info = reader.next_frame(&mut buf).expect("frame");
+        assert_eq!((info.width, info.height), (3, 2));
+        assert_eq!(&buf[16..20], &[200, 0, 100, 255]);
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
