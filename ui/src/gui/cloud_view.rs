@@ -37,8 +37,11 @@ pub fn install_renderer(
 }
 
 struct CloudCallback {
-    /// New points to upload, when the cloud changed since the last frame.
-    upload: Option<Arc<Vec<PointVertex>>>,
+    /// The points of the newest cloud and its window number; uploaded by `prepare` when the
+    /// renderer holds another window (a UI pass is not always painted, so every callback
+    /// carries the points rather than only the pass where they changed).
+    points: Arc<Vec<PointVertex>>,
+    window: u64,
     uniforms: PointUniforms,
 }
 
@@ -52,8 +55,8 @@ impl CallbackTrait for CloudCallback {
         resources: &mut egui_wgpu::CallbackResources,
     ) -> Vec<wgpu::CommandBuffer> {
         if let Some(renderer) = resources.get_mut::<PointCloudRenderer>() {
-            if let Some(points) = &self.upload {
-                renderer.upload(device, queue, points);
+            if renderer.uploaded_window() != Some(self.window) {
+                renderer.upload(device, queue, &self.points, self.window);
             }
             renderer.set_view(queue, &self.uniforms);
         }
@@ -196,17 +199,16 @@ impl CloudView {
                 }
             }
         }
-        let upload = match frame {
-            Some(f) if self.uploaded != Some(f.window_end) => {
+        if let Some(f) = frame {
+            if self.uploaded != Some(f.window_end) {
+                // Reuse the buffer once the renderer's callbacks have let go of it.
                 let mut packed =
                     Arc::try_unwrap(std::mem::take(&mut self.packed)).unwrap_or_default();
                 pack_points(&f.cloud, 1, &mut packed);
                 self.packed = Arc::new(packed);
                 self.uploaded = Some(f.window_end);
-                Some(Arc::clone(&self.packed))
             }
-            _ => None,
-        };
+        }
         if self.has_renderer {
             let ppp = ui.ctx().pixels_per_point();
             let uniforms = PointUniforms {
@@ -217,7 +219,11 @@ impl CloudView {
             };
             ui.painter().add(egui_wgpu::Callback::new_paint_callback(
                 rect,
-                CloudCallback { upload, uniforms },
+                CloudCallback {
+                    points: Arc::clone(&self.packed),
+                    window: self.uploaded.unwrap_or(0),
+                    uniforms,
+                },
             ));
         } else {
             ui.painter().text(

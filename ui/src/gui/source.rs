@@ -25,8 +25,10 @@ use tremorscan::tremor::LiveTracker;
 /// Seconds of displacement history kept per control point.
 pub const HISTORY_S: f64 = 5.0;
 
-/// Clouds waiting for the tracker at most.
-const TRACKER_QUEUE: usize = 32;
+/// Clouds waiting for the tracker at most. Tracking takes well under a millisecond per cloud, so
+/// the queue only fills while the window holds the tracker's lock; each cloud can be 60 MB at
+/// 1920×1200, so it stays short.
+const TRACKER_QUEUE: usize = 8;
 
 /// What is measuring.
 pub struct Source {
@@ -70,8 +72,10 @@ impl Source {
         // every window is decoded and the tremor is sampled at the full scene rate (a slower PC
         // plays them in slow motion, shown by the status bar's rates). A real camera uses
         // `DecodePolicy::RealTime`.
+        // One frame waiting is enough to keep capture and decode both busy; more only adds latency.
         let config = PipelineConfig {
             decode_policy: DecodePolicy::Lossless,
+            decode_queue: 1,
             consumer_queue: TRACKER_QUEUE,
             decode_params: tremorscan::decode::DecodeParams {
                 unwrap: settings.unwrap.method(),

@@ -60,6 +60,8 @@ pub struct PointCloudRenderer {
     bind_group: wgpu::BindGroup,
     vertices: Option<wgpu::Buffer>,
     count: u32,
+    /// Which cloud (the caller's number) the vertex buffer holds.
+    uploaded_window: Option<u64>,
 }
 
 impl PointCloudRenderer {
@@ -144,11 +146,19 @@ impl PointCloudRenderer {
             bind_group,
             vertices: None,
             count: 0,
+            uploaded_window: None,
         }
     }
 
-    /// Uploads `points`, growing the vertex buffer when needed.
-    pub fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, points: &[PointVertex]) {
+    /// Uploads `points` (the cloud the caller numbers `window`), growing the vertex buffer when
+    /// needed.
+    pub fn upload(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        points: &[PointVertex],
+        window: u64,
+    ) {
         let bytes: &[u8] = bytemuck::cast_slice(points);
         let fits = self
             .vertices
@@ -168,6 +178,12 @@ impl PointCloudRenderer {
             }
         }
         self.count = points.len() as u32;
+        self.uploaded_window = Some(window);
+    }
+
+    /// The number of the cloud last uploaded.
+    pub fn uploaded_window(&self) -> Option<u64> {
+        self.uploaded_window
     }
 
     pub fn set_view(&self, queue: &wgpu::Queue, uniforms: &PointUniforms) {
