@@ -109,6 +109,17 @@ fn clicking_the_hand_adds_a_tracked_control_point_that_can_be_renamed_and_remove
     h.get_by_label("Remove").click();
     h.run_steps(2);
     assert!(h.state().tracker_copy().points.is_empty());
+    // A click on the cloud in the 3D view picks the surface point drawn there.
+    h.get_by_label("3D view").click();
+    h.run_steps(2);
+    let tracker = h.state().tracker_copy();
+    assert_eq!(tracker.points.len(), 1, "a point picked in 3D");
+    step_until(
+        &mut h,
+        Duration::from_secs(120),
+        "the picked point measured",
+        |app| app.tracker_copy().points[0].latest_position_mm().is_some(),
+    );
     let _ = std::fs::remove_dir_all(dir);
 }
 

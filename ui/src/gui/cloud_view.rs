@@ -148,6 +148,7 @@ impl CloudView {
         let rect = ui.available_rect_before_wrap().intersect(ui.clip_rect());
         let rect = egui::Rect::from_min_size(rect.min, rect.size().max(Vec2::splat(50.0)));
         let response = ui.allocate_rect(rect, Sense::click_and_drag());
+        response.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Image, true, "3D view"));
         ui.painter().rect_filled(rect, 0.0, Color32::from_gray(18));
         let Some(camera) = &mut self.camera else {
             ui.painter().text(

@@ -152,6 +152,21 @@ pub enum WizardOutcome {
     Saved(PathBuf),
 }
 
+/// Asks where to save a calibration file (JSON), starting from `current`.
+pub fn choose_save_path(current: &str) -> Option<String> {
+    let current = PathBuf::from(current.trim());
+    let mut dialog = rfd::FileDialog::new()
+        .set_title("Save the calibration")
+        .add_filter("JSON", &["json"]);
+    if let Some(dir) = current.parent().filter(|d| d.is_dir()) {
+        dialog = dialog.set_directory(dir);
+    }
+    if let Some(name) = current.file_name() {
+        dialog = dialog.set_file_name(name.to_string_lossy());
+    }
+    dialog.save_file().map(|p| p.display().to_string())
+}
+
 pub fn colour_wizard_ui(ui: &mut egui::Ui, w: &mut ColourWizard) -> WizardOutcome {
     let mut outcome = WizardOutcome::Open;
     match w.step {
@@ -226,6 +241,11 @@ pub fn colour_wizard_ui(ui: &mut egui::Ui, w: &mut ColourWizard) -> WizardOutcom
                                 .id_salt("colour_save_path"),
                         )
                         .labelled_by(l.id);
+                        if ui.button("Choose…").clicked() {
+                            if let Some(path) = choose_save_path(&w.save_path) {
+                                w.save_path = path;
+                            }
+                        }
                     });
                     ui.horizontal(|ui| {
                         if ui.button("Save colour calibration").clicked() {

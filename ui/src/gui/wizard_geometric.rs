@@ -304,6 +304,11 @@ fn review_ui(ui: &mut egui::Ui, w: &mut GeometricWizard, outcome: &mut WizardOut
                     .id_salt("geometric_save_path"),
             )
             .labelled_by(l.id);
+            if ui.button("Choose…").clicked() {
+                if let Some(path) = super::wizard_colour::choose_save_path(&w.save_path) {
+                    w.save_path = path;
+                }
+            }
         });
         if ui.button("Save calibration").clicked() {
             match w.save() {
