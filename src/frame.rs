@@ -40,6 +40,18 @@ pub struct Frame {
 }
 
 impl Frame {
+    /// A 0×0 RGB frame, to be filled (grabs and copies resize it).
+    pub fn empty() -> Self {
+        Self {
+            width: 0,
+            height: 0,
+            channels: 3,
+            data: Vec::new(),
+            time_s: 0.0,
+            pattern_index: 0,
+        }
+    }
+
     /// A black frame.
     pub fn new(width: usize, height: usize, channels: usize) -> Result<Self, FrameError> {
         if channels != 1 && channels != 3 {

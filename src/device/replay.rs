@@ -38,13 +38,7 @@ impl Camera for ReplayCamera {
     }
 
     fn fps(&self) -> f64 {
-        let frames = &self.session.manifest.frames;
-        match (frames.first(), frames.last()) {
-            (Some(a), Some(b)) if b.time_s > a.time_s => {
-                (frames.len() - 1) as f64 / (b.time_s - a.time_s)
-            }
-            _ => 121.0,
-        }
+        self.session.frame_rate_hz()
     }
 
     fn grab(&mut self, frame: &mut Frame) -> Result<Grabbed, DeviceError> {

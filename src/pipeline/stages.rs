@@ -32,14 +32,7 @@ pub(super) fn capture_loop(
         let mut item = match pool.iter().position(|a| Arc::strong_count(a) == 1) {
             Some(i) => pool.swap_remove(i),
             None => Arc::new(CapturedFrame {
-                frame: Frame {
-                    width: 0,
-                    height: 0,
-                    channels: 3,
-                    data: Vec::new(),
-                    time_s: 0.0,
-                    pattern_index: 0,
-                },
+                frame: Frame::empty(),
                 sequence_number: 0,
                 arrived: Instant::now(),
             }),
@@ -134,14 +127,7 @@ pub(super) fn decode_loop(
             Some(i) => spare.swap_remove(i),
             None => Arc::new(CloudFrame {
                 cloud: PointCloud::default(),
-                camera_image: Frame {
-                    width: 0,
-                    height: 0,
-                    channels: 3,
-                    data: Vec::new(),
-                    time_s: 0.0,
-                    pattern_index: 0,
-                },
+                camera_image: Frame::empty(),
                 projector_px: Vec::new(),
                 window_end: 0,
                 latency: Default::default(),

@@ -211,6 +211,18 @@ impl Session {
         self.manifest.frames.len()
     }
 
+    /// Frames per second from the frame times; the nominal 121 when fewer than two frames or
+    /// no time span say otherwise.
+    pub fn frame_rate_hz(&self) -> f64 {
+        let frames = &self.manifest.frames;
+        match (frames.first(), frames.last()) {
+            (Some(a), Some(b)) if b.time_s > a.time_s => {
+                (frames.len() - 1) as f64 / (b.time_s - a.time_s)
+            }
+            _ => 121.0,
+        }
+    }
+
     pub fn camera_size(&self) -> (usize, usize) {
         (self.manifest.camera.width, self.manifest.camera.height)
     }

@@ -22,15 +22,15 @@ fn register_font() -> Result<()> {
 }
 
 /// One control point's series and figures.
-pub struct PointFigure<'a> {
+pub struct PointFigure {
     pub label: String,
-    pub times_s: &'a [f64],
-    pub displacement_mm: &'a [Option<f64>],
-    pub report: &'a TremorReport,
+    pub times_s: Vec<f64>,
+    pub displacement_mm: Vec<Option<f64>>,
+    pub report: TremorReport,
 }
 
 /// Writes the report for `points` to `path` (PNG, 1200 px wide, 500 px per point).
-pub fn write_report(path: &Path, points: &[PointFigure<'_>]) -> Result<()> {
+pub fn write_report(path: &Path, points: &[PointFigure]) -> Result<()> {
     register_font()?;
     let height = 500 * points.len().max(1) as u32;
     let mut pixels = vec![0u8; 1200 * height as usize * 3];
@@ -58,8 +58,8 @@ fn image_save(path: &Path, rgb: &[u8], width: u32, height: u32) -> Result<()> {
 
 type Area<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
 
-fn draw_point(area: &Area<'_>, point: &PointFigure<'_>) -> Result<(), Box<dyn std::error::Error>> {
-    let r = point.report;
+fn draw_point(area: &Area<'_>, point: &PointFigure) -> Result<(), Box<dyn std::error::Error>> {
+    let r = &point.report;
     let title = format!(
         "{}: peak {}, peak-to-peak {:.2} mm, RMS {:.2} mm, MDS-UPDRS amplitude bin {}, {:.0} % valid",
         point.label,
@@ -89,7 +89,7 @@ fn draw_point(area: &Area<'_>, point: &PointFigure<'_>) -> Result<(), Box<dyn st
         .label_style(("sans-serif", 14))
         .draw()?;
     let mut run: Vec<(f64, f64)> = Vec::new();
-    for (t, d) in point.times_s.iter().zip(point.displacement_mm) {
+    for (t, d) in point.times_s.iter().zip(&point.displacement_mm) {
         match d {
             Some(d) => run.push((t - t0, *d)),
             None if !run.is_empty() => {

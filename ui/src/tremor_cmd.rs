@@ -106,10 +106,7 @@ pub fn track_session(
             bail!("point {u},{v} lies outside the {w}×{h} camera image");
         }
     }
-    let fps = session.manifest.frames.len().saturating_sub(1) as f64
-        / (session.manifest.frames.last().map_or(0.0, |f| f.time_s)
-            - session.manifest.frames.first().map_or(0.0, |f| f.time_s))
-        .max(1e-9);
+    let fps = session.frame_rate_hz();
     let cross_talk = session
         .cross_talk()?
         .unwrap_or_else(tremorscan::color::CrossTalk::identity);
@@ -289,19 +286,15 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
             (100.0 * r.valid_fraction).round()
         );
         objects.push(report_json((u, v), &r, &axis));
-        series.push((format!("point ({u}, {v})"), times, d, r));
+        series.push(crate::report_png::PointFigure {
+            label: format!("point ({u}, {v})"),
+            times_s: times,
+            displacement_mm: d,
+            report: r,
+        });
     }
     if let Some(png) = &args.png {
-        let figures: Vec<crate::report_png::PointFigure<'_>> = series
-            .iter()
-            .map(|(label, times, d, r)| crate::report_png::PointFigure {
-                label: label.clone(),
-                times_s: times,
-                displacement_mm: d,
-                report: r,
-            })
-            .collect();
-        crate::report_png::write_report(png, &figures)
+        crate::report_png::write_report(png, &series)
             .with_context(|| format!("writing {}", png.display()))?;
         println!("wrote {}", png.display());
     }

@@ -55,6 +55,16 @@ fn step_until(
     }
 }
 
+/// Types `path` into the toolbar's session field and presses "Open replay".
+fn open_replay_via_toolbar(h: &mut Harness<'_, TremorApp>, path: &str) {
+    h.get_by_label("Session:").focus();
+    h.run_steps(1);
+    h.get_by_label("Session:").type_text(path);
+    h.run_steps(1);
+    h.get_by_label("Open replay").click();
+    h.run_steps(2);
+}
+
 fn has_cloud(app: &TremorApp) -> bool {
     app.source.as_ref().is_some_and(|s| s.latest.is_some())
 }
@@ -160,13 +170,7 @@ fn a_trial_is_recorded_stopped_by_hand_and_replayed() {
     );
 
     // Replay it: paused at the start, three steps fill the first window.
-    h.get_by_label("Session:").focus();
-    h.run_steps(1);
-    h.get_by_label("Session:")
-        .type_text(&session_dir.display().to_string());
-    h.run_steps(1);
-    h.get_by_label("Open replay").click();
-    h.run_steps(2);
+    open_replay_via_toolbar(&mut h, &session_dir.display().to_string());
     assert!(h
         .state()
         .source
@@ -317,13 +321,7 @@ fn the_geometric_wizard_calibrates_from_poses_and_recomputes_without_a_dropped_v
 fn a_missing_session_is_a_message_not_a_crash_and_the_rig_comes_back() {
     let dir = scratch("missing");
     let mut h = harness(settings(&dir));
-    h.get_by_label("Session:").focus();
-    h.run_steps(1);
-    h.get_by_label("Session:")
-        .type_text(&dir.join("no-such-session").display().to_string());
-    h.run_steps(1);
-    h.get_by_label("Open replay").click();
-    h.run_steps(2);
+    open_replay_via_toolbar(&mut h, &dir.join("no-such-session").display().to_string());
     assert!(h.state().source.is_none());
     let (_, _, text) = h.state().messages.latest().expect("a message").clone();
     assert!(text.contains("no-such-session"), "{text}");

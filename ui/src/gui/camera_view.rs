@@ -2,7 +2,7 @@
 //! (projector coordinate), with invalid pixels in a colour of their own. Clicking the image adds
 //! a control point at that pixel; dragging a point's marker moves it.
 
-use super::points::{PointColours, PointEdit};
+use super::points::{draw_marker, PointColours, PointEdit};
 use egui::{Color32, ColorImage, Pos2, Rect, Sense, TextureHandle, TextureOptions, Vec2};
 use tremorscan::pipeline::CloudFrame;
 use tremorscan::tremor::LiveTracker;
@@ -233,16 +233,7 @@ impl CameraView {
                 Some((id, pixel)) if id == p.id => pixel,
                 _ => p.pixel,
             };
-            let colour = colours.colour(p.id);
-            let centre = to_screen(pixel);
-            painter.circle_stroke(centre, 6.0, egui::Stroke::new(2.0, colour));
-            painter.text(
-                centre + Vec2::new(8.0, -8.0),
-                egui::Align2::LEFT_BOTTOM,
-                &p.name,
-                egui::FontId::proportional(13.0),
-                colour,
-            );
+            draw_marker(&painter, to_screen(pixel), colours.colour(p.id), &p.name);
         }
         response.on_hover_text("Click to add a control point; drag a marker to move it");
     }

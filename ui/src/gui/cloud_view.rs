@@ -5,7 +5,7 @@
 //! click picks the surface point under the pointer and adds a control point there; markers are
 //! projected with the shader's own matrix.
 
-use super::points::{PointColours, PointEdit};
+use super::points::{draw_marker, PointColours, PointEdit};
 use crate::render::orbit::{pick, project, OrbitCamera, ViewPreset};
 use crate::render::point_cloud::{pack_points, PointCloudRenderer, PointUniforms, PointVertex};
 use egui::{Color32, PointerButton, Sense, Vec2};
@@ -243,15 +243,7 @@ impl CloudView {
             let q = [q[0] as f32, q[1] as f32, q[2] as f32];
             if let Some((s, _)) = project(&clip_from_world, q, view_size) {
                 let centre = rect.min + Vec2::new(s[0], s[1]);
-                let colour = colours.colour(p.id);
-                painter.circle_stroke(centre, 7.0, egui::Stroke::new(2.5, colour));
-                painter.text(
-                    centre + Vec2::new(9.0, -9.0),
-                    egui::Align2::LEFT_BOTTOM,
-                    &p.name,
-                    egui::FontId::proportional(13.0),
-                    colour,
-                );
+                draw_marker(&painter, centre, colours.colour(p.id), &p.name);
             }
         }
         response.on_hover_text(

@@ -113,18 +113,14 @@ pub fn export_report(png: &Path, tracker: &LiveTracker) -> Result<String> {
         let mut object = report_json(p.pixel, &r, &axis);
         object["name"] = serde_json::Value::String(p.name.clone());
         objects.push(object);
-        series.push((p.name.clone(), times, d, r));
-    }
-    let figures: Vec<crate::report_png::PointFigure<'_>> = series
-        .iter()
-        .map(|(label, times, d, r)| crate::report_png::PointFigure {
-            label: label.clone(),
+        series.push(crate::report_png::PointFigure {
+            label: p.name.clone(),
             times_s: times,
             displacement_mm: d,
             report: r,
-        })
-        .collect();
-    crate::report_png::write_report(png, &figures)
+        });
+    }
+    crate::report_png::write_report(png, &series)
         .with_context(|| format!("writing {}", png.display()))?;
     let json = png.with_extension("json");
     tremorscan::jsonfile::write_atomic(&json, &objects)?;

@@ -89,6 +89,18 @@ pub fn apply(
     }
 }
 
+/// A control point's marker: a ring in its colour with its name beside it.
+pub fn draw_marker(painter: &egui::Painter, centre: egui::Pos2, colour: Color32, name: &str) {
+    painter.circle_stroke(centre, 6.5, egui::Stroke::new(2.0, colour));
+    painter.text(
+        centre + egui::vec2(8.0, -8.0),
+        egui::Align2::LEFT_BOTTOM,
+        name,
+        egui::FontId::proportional(13.0),
+        colour,
+    );
+}
+
 /// The list of points: colour, editable name, pixel, latest depth, remove button.
 pub fn points_list_ui(
     ui: &mut egui::Ui,
