@@ -8,7 +8,8 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use tremorscan_ui::gui::app::TremorApp;
 use tremorscan_ui::gui::cloud_view::install_renderer;
-use tremorscan_ui::gui::settings::Settings;
+use tremorscan_ui::gui::settings::{Settings, UnwrapChoice};
+use tremorscan_ui::gui::trial_ui::TrialState;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("tremorscan-gui-{name}-{}", std::process::id()));
@@ -225,6 +226,32 @@ fn the_colour_wizard_captures_ten_colours_fits_and_saves() {
     h.run_steps(2);
     h.get_by_label("Next: capture colours").click();
     h.run_steps(2);
+    // Live feedback before the captures: too much exposure clips the full-level colours.
+    let live = |h: &Harness<'_, TremorApp>| {
+        h.state()
+            .colour_wizard
+            .as_ref()
+            .and_then(|w| w.live)
+            .expect("live feedback")
+    };
+    // The feedback refreshes at most four times a second.
+    std::thread::sleep(Duration::from_millis(300));
+    h.state_mut()
+        .colour_wizard
+        .as_mut()
+        .expect("wizard")
+        .exposure = 2.0;
+    h.run_steps(2);
+    assert!(live(&h).full_level_saturated > 0.5, "{:?}", live(&h));
+    std::thread::sleep(Duration::from_millis(300));
+    h.state_mut()
+        .colour_wizard
+        .as_mut()
+        .expect("wizard")
+        .exposure = 0.8;
+    h.run_steps(2);
+    assert_eq!(live(&h).exposure, 0.8);
+    assert!(live(&h).full_level_saturated < 0.01, "{:?}", live(&h));
     for _ in 0..10 {
         h.get_by_label("Capture colour").click();
         h.run_steps(2);
@@ -387,5 +414,94 @@ fn settings_apply_a_new_pattern_and_a_point_can_be_dragged() {
         "moved {moved} px, expected {}",
         40.0 * scale
     );
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn a_timed_trial_counts_down_records_its_duration_and_stops_by_itself() {
+    let dir = scratch("timed");
+    let mut h = harness(Settings {
+        countdown_seconds: 1.0,
+        ..settings(&dir)
+    });
+    h.get_by_label("5 s").click();
+    h.run_steps(1);
+    h.get_by_label("Record trial").click();
+    h.run_steps(1);
+    assert!(matches!(
+        h.state().trial.state,
+        TrialState::Countdown { .. }
+    ));
+    step_until(
+        &mut h,
+        Duration::from_secs(10),
+        "the recording to start",
+        |app| matches!(app.trial.state, TrialState::Recording { .. }),
+    );
+    let started = Instant::now();
+    step_until(
+        &mut h,
+        Duration::from_secs(30),
+        "the recording to stop",
+        |app| app.trial.state == TrialState::Idle,
+    );
+    let took = started.elapsed().as_secs_f64();
+    assert!((4.9..7.0).contains(&took), "recorded for {took:.1} s");
+    let outcome = h.state().trial.last_outcome.clone().expect("an outcome");
+    assert!(outcome.starts_with("saved "), "{outcome}");
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn a_folder_that_cannot_be_created_is_reported_and_nothing_records() {
+    let dir = scratch("unwritable");
+    // A regular file where the sessions folder should be.
+    let blocker = dir.join("not-a-folder");
+    std::fs::write(&blocker, b"x").expect("file");
+    let mut h = harness(Settings {
+        sessions_dir: blocker.join("sessions"),
+        ..settings(&dir)
+    });
+    h.get_by_label("manual").click();
+    h.run_steps(1);
+    h.get_by_label("Record trial").click();
+    h.run_steps(2);
+    assert_eq!(h.state().trial.state, TrialState::Idle);
+    let (_, _, text) = h.state().messages.latest().expect("a message").clone();
+    assert!(text.contains("cannot create"), "{text}");
+    assert!(!h
+        .state()
+        .source
+        .as_ref()
+        .is_some_and(|s| s.pipeline.is_recording()));
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn applied_settings_persist_to_the_settings_file() {
+    let dir = scratch("persist");
+    let path = dir.join("config").join("settings.json");
+    let s = settings(&dir);
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1400.0, 900.0))
+        .wgpu()
+        .build_eframe(move |cc| {
+            let has_renderer = cc.wgpu_render_state.as_ref().is_some_and(|s| {
+                install_renderer(s, None);
+                true
+            });
+            TremorApp::new(s, Some(path), has_renderer)
+        });
+    h.get_by_label("Settings…").click();
+    h.run_steps(2);
+    h.get_by_label("per pixel (paper)").click();
+    h.run_steps(1);
+    h.get_by_label("Apply").click();
+    h.run_steps(2);
+    let (saved, problem) =
+        tremorscan_ui::gui::settings::load(&dir.join("config").join("settings.json"));
+    assert_eq!(problem, None);
+    assert_eq!(saved.unwrap, UnwrapChoice::PerPixel);
+    assert_eq!(saved, h.state().settings);
     let _ = std::fs::remove_dir_all(dir);
 }

@@ -65,6 +65,19 @@ pub struct ColourWizard {
     pub result: Option<Result<ColourCalibration, String>>,
     pub save_path: String,
     pub roi: Roi,
+    /// Live feedback at the current exposure, before the next capture.
+    pub live: Option<LiveExposure>,
+}
+
+/// What the camera sees now, at the exposure set: the next colour, and the worst saturation of
+/// the three full-level colours (the ones that clip first).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LiveExposure {
+    pub exposure: f64,
+    pub next_capture: usize,
+    pub next: Exposure,
+    pub full_level_saturated: f64,
+    computed: std::time::Instant,
 }
 
 impl ColourWizard {
@@ -85,7 +98,53 @@ impl ColourWizard {
                 width: side,
                 height: side,
             },
+            live: None,
         }
+    }
+
+    /// The camera frame with the projector showing Table 1 colour `k` at the current exposure.
+    fn render_colour(&self, k: usize) -> Result<Frame, String> {
+        let levels = *TABLE1_LEVELS.get(k).ok_or("all ten colours are captured")?;
+        let mut target = colour_target(&self.config, AMBIENT_GRAY).map_err(|e| e.to_string())?;
+        target.projector_gain_gray *= self.exposure;
+        let sequence = target.default_sequence().map_err(|e| e.to_string())?;
+        let rig = VirtualRig::new(target, sequence).map_err(|e| e.to_string())?;
+        let mut frame = rig.blank_frame();
+        rig.render_flat(k as u64, levels, 0.0, &mut frame, None)
+            .map_err(|e| e.to_string())?;
+        Ok(frame)
+    }
+
+    /// Refreshes the live feedback when the exposure or the next colour changed (at most four
+    /// times a second while the slider moves).
+    pub fn update_live(&mut self) -> Result<(), String> {
+        let k = self.captures.len();
+        if k >= TABLE1_LEVELS.len() {
+            self.live = None;
+            return Ok(());
+        }
+        if let Some(l) = &self.live {
+            let same = l.exposure == self.exposure && l.next_capture == k;
+            if same || l.computed.elapsed() < std::time::Duration::from_millis(250) {
+                return Ok(());
+            }
+        }
+        let next = exposure_of(&self.render_colour(k)?, self.roi, 250);
+        let mut full_level_saturated = 0.0f64;
+        for (j, levels) in TABLE1_LEVELS.iter().enumerate() {
+            if levels.contains(&255) {
+                let e = exposure_of(&self.render_colour(j)?, self.roi, 250);
+                full_level_saturated = full_level_saturated.max(e.saturated);
+            }
+        }
+        self.live = Some(LiveExposure {
+            exposure: self.exposure,
+            next_capture: k,
+            next,
+            full_level_saturated,
+            computed: std::time::Instant::now(),
+        });
+        Ok(())
     }
 
     fn options(&self) -> ColourOptions {
@@ -99,15 +158,7 @@ impl ColourWizard {
 
     /// Projects the next Table 1 colour and captures it.
     pub fn capture_next(&mut self) -> Result<(), String> {
-        let k = self.captures.len();
-        let levels = *TABLE1_LEVELS.get(k).ok_or("all ten colours are captured")?;
-        let mut target = colour_target(&self.config, AMBIENT_GRAY).map_err(|e| e.to_string())?;
-        target.projector_gain_gray *= self.exposure;
-        let sequence = target.default_sequence().map_err(|e| e.to_string())?;
-        let rig = VirtualRig::new(target, sequence).map_err(|e| e.to_string())?;
-        let mut frame = rig.blank_frame();
-        rig.render_flat(k as u64, levels, 0.0, &mut frame, None)
-            .map_err(|e| e.to_string())?;
+        let frame = self.render_colour(self.captures.len())?;
         self.feedback.push(exposure_of(&frame, self.roi, 250));
         self.captures.push(frame);
         if self.captures.len() == TABLE1_LEVELS.len() {
@@ -191,6 +242,23 @@ pub fn colour_wizard_ui(ui: &mut egui::Ui, w: &mut ColourWizard) -> WizardOutcom
                     "next colour: projector levels R {} G {} B {}",
                     levels[0], levels[1], levels[2]
                 ));
+            }
+            if let Err(e) = w.update_live() {
+                w.result = Some(Err(e));
+            }
+            if let Some(l) = &w.live {
+                let text = format!(
+                    "live: mean R G B {:.1} {:.1} {:.1} · full-level colours saturated on {:.1} %",
+                    l.next.mean_rgb[0],
+                    l.next.mean_rgb[1],
+                    l.next.mean_rgb[2],
+                    100.0 * l.full_level_saturated
+                );
+                if l.full_level_saturated > 0.01 {
+                    ui.colored_label(egui::Color32::RED, text + ": lower the exposure");
+                } else {
+                    ui.label(text);
+                }
             }
             exposure_table_ui(ui, w);
             ui.horizontal(|ui| {
