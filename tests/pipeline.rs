@@ -286,3 +286,58 @@ fn devices_pace_and_end_as_asked() {
     ));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn ending_a_recording_without_waiting_still_writes_every_frame_and_reports_it() {
+    let small = rig(160, 100);
+    let frames = rendered(&small, 6);
+    let go = Arc::new(AtomicBool::new(false));
+    let camera = MemoryCamera {
+        frames: frames.clone(),
+        repeat: 4,
+        next: 0,
+        go: Arc::clone(&go),
+        interval: Duration::ZERO,
+    };
+    let config = PipelineConfig {
+        decode_policy: DecodePolicy::Lossless,
+        ..PipelineConfig::default()
+    };
+    let pipeline = Pipeline::start(
+        Box::new(camera),
+        small.sequence.clone(),
+        small.config.cross_talk,
+        small.stereo_model(),
+        config,
+    )
+    .unwrap();
+    let dir = scratch("end-recording");
+    pipeline
+        .start_recording(&dir, manifest(&small), TrialJson::default())
+        .unwrap();
+    go.store(true, Ordering::SeqCst);
+    assert!(pipeline.wait_for_end(Duration::from_secs(30)));
+    assert!(pipeline.end_recording());
+    assert!(!pipeline.is_recording());
+    assert!(!pipeline.end_recording(), "nothing left to end");
+    // The outcome arrives as an event once the recorder has written what it held.
+    let start = std::time::Instant::now();
+    let summary = loop {
+        let stopped = pipeline.events().into_iter().find_map(|e| match e {
+            PipelineEvent::RecordingStopped(r) => Some(r),
+            _ => None,
+        });
+        if let Some(r) = stopped {
+            break r.unwrap();
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "no RecordingStopped event"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    assert_eq!(summary.frames, 24);
+    assert_eq!(Session::open(&dir).unwrap().frame_count(), 24);
+    let m = pipeline.stop();
+    assert_eq!((m.recorded, m.recorder_lost), (24, 0));
+}

@@ -338,6 +338,25 @@ impl Pipeline {
         Some(stages::finish_recording(link))
     }
 
+    /// Ends the recording without waiting for the disk: the recorder writes every frame it
+    /// holds on its own thread and reports the outcome as [`PipelineEvent::RecordingStopped`]
+    /// (a GUI stays responsive meanwhile). Returns whether a recording was running.
+    pub fn end_recording(&self) -> bool {
+        let link = self
+            .shared
+            .recorder
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .take();
+        match link {
+            Some(link) => {
+                stash(&self.shared, link);
+                true
+            }
+            None => false,
+        }
+    }
+
     pub fn is_recording(&self) -> bool {
         self.shared
             .recorder
@@ -362,6 +381,13 @@ impl Pipeline {
     pub fn stop(mut self) -> MetricsSnapshot {
         self.shutdown();
         self.metrics()
+    }
+
+    /// Like [`Self::stop`], and also hands back the events not yet taken: the outcome of a
+    /// recording that was still being written is among them.
+    pub fn stop_with_events(mut self) -> (MetricsSnapshot, Vec<PipelineEvent>) {
+        self.shutdown();
+        (self.metrics(), self.events())
     }
 
     fn shutdown(&mut self) {

@@ -154,7 +154,14 @@ fn a_trial_is_recorded_stopped_by_hand_and_replayed() {
             .is_some_and(|s| s.pipeline.metrics().recorded >= 12)
     });
     h.get_by_label_contains("Stop recording").click();
-    h.run_steps(2);
+    h.run_steps(1);
+    // Stopping does not wait for the disk: the recorder reports when every frame is written.
+    step_until(
+        &mut h,
+        Duration::from_secs(30),
+        "the recording's outcome",
+        |app| app.trial.last_outcome.is_some(),
+    );
     let outcome = h.state().trial.last_outcome.clone().expect("an outcome");
     assert!(outcome.starts_with("saved "), "{outcome}");
     let session_dir = std::fs::read_dir(dir.join("sessions"))

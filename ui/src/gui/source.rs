@@ -17,7 +17,7 @@ use std::thread::JoinHandle;
 use tremorscan::calibrate::file::{CalibrationFile, ColourFile};
 use tremorscan::device::{Pacing, PlaybackCamera, PlaybackControl, VirtualCamera};
 use tremorscan::pattern::{cps_rgb, Axis, PatternSequence};
-use tremorscan::pipeline::{CloudFrame, DecodePolicy, Pipeline, PipelineConfig};
+use tremorscan::pipeline::{CloudFrame, DecodePolicy, Pipeline, PipelineConfig, PipelineEvent};
 use tremorscan::rig::{RigConfig, VirtualRig};
 use tremorscan::session::{Manifest, Session};
 use tremorscan::tremor::LiveTracker;
@@ -179,14 +179,15 @@ impl Source {
         self.tracker.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
-    /// Stops everything and hands back the tracker (its points carry over to the next source).
-    pub fn stop(mut self) -> LiveTracker {
-        // Dropping the pipeline stops its threads and closes the consumer queue.
-        drop(self.pipeline);
+    /// Stops everything (a recording still being written is finished first) and hands back the
+    /// tracker (its points carry over to the next source) and the last events.
+    pub fn stop(mut self) -> (LiveTracker, Vec<PipelineEvent>) {
+        // Stopping the pipeline joins its threads and closes the consumer queue.
+        let (_, events) = self.pipeline.stop_with_events();
         if let Some(t) = self.tracker_thread.take() {
             let _ = t.join();
         }
         let tracker = self.tracker.lock().unwrap_or_else(PoisonError::into_inner);
-        tracker.clone()
+        (tracker.clone(), events)
     }
 }

@@ -2,10 +2,13 @@
 //! stop, folder), the countdown, the recording with its progress, and the outcome. Every frame the
 //! camera delivers during the recording is written (the pipeline's recorder never drops one
 //! silently: if the disk cannot keep up the recording stops and says so, keeping what it wrote).
+//! Stopping does not wait for the disk: the form shows "finishing" until the recorder reports
+//! that every queued frame is written, then the outcome.
 
 use super::source::Source;
 use std::path::PathBuf;
 use std::time::Instant;
+use tremorscan::session::record::RecordingSummary;
 use tremorscan::session::TrialJson;
 
 /// Duration presets, seconds (0: stop by hand).
@@ -21,6 +24,10 @@ pub enum TrialState {
         started: Instant,
         dir: PathBuf,
         recorded_before: u64,
+    },
+    /// Stopped; the recorder is still writing the frames it holds.
+    Finishing {
+        dir: PathBuf,
     },
 }
 
@@ -103,9 +110,9 @@ impl TrialForm {
             {
                 self.stop(source);
             }
-            TrialState::Recording { .. } if !source.pipeline.is_recording() => {
+            TrialState::Recording { dir, .. } if !source.pipeline.is_recording() => {
                 // The recorder stopped by itself (disk full or too slow); its event says why.
-                self.state = TrialState::Idle;
+                self.state = TrialState::Finishing { dir: dir.clone() };
             }
             _ => {}
         }
@@ -143,23 +150,38 @@ impl TrialForm {
         }
     }
 
-    /// Stops a recording (or a countdown).
+    /// Stops a recording without waiting for the disk (the outcome comes with
+    /// [`Self::recording_stopped`]), or cancels a countdown.
     pub fn stop(&mut self, source: &Source) {
-        if let TrialState::Recording { dir, .. } = &self.state {
-            self.last_outcome = Some(match source.pipeline.stop_recording() {
-                Some(Ok(s)) => format!(
-                    "saved {} frames ({:.1} MB) to {}",
-                    s.frames,
-                    s.bytes as f64 / 1e6,
-                    dir.display()
-                ),
-                Some(Err(e)) => format!(
-                    "the recording failed: {e}; the frames written to {} stay readable",
-                    dir.display()
-                ),
-                None => format!("the recording in {} had already stopped", dir.display()),
-            });
-        }
+        self.state = match std::mem::replace(&mut self.state, TrialState::Idle) {
+            TrialState::Recording { dir, .. } => {
+                source.pipeline.end_recording();
+                TrialState::Finishing { dir }
+            }
+            other @ TrialState::Finishing { .. } => other,
+            TrialState::Idle | TrialState::Countdown { .. } => TrialState::Idle,
+        };
+    }
+
+    /// The recorder's report (the pipeline's `RecordingStopped` event): every frame it held is
+    /// written, or why it failed.
+    pub fn recording_stopped(&mut self, result: &Result<RecordingSummary, String>) {
+        let dir = match &self.state {
+            TrialState::Recording { dir, .. } | TrialState::Finishing { dir } => dir.clone(),
+            _ => return,
+        };
+        self.last_outcome = Some(match result {
+            Ok(s) => format!(
+                "saved {} frames ({:.1} MB) to {}",
+                s.frames,
+                s.bytes as f64 / 1e6,
+                dir.display()
+            ),
+            Err(e) => format!(
+                "the recording failed: {e}; the frames written to {} stay readable",
+                dir.display()
+            ),
+        });
         self.state = TrialState::Idle;
     }
 
@@ -288,6 +310,15 @@ impl TrialForm {
                 if ui.button("Stop recording").clicked() {
                     self.stop(source);
                 }
+            }
+            TrialState::Finishing { dir } => {
+                ui.horizontal(|ui| {
+                    ui.spinner();
+                    ui.label(format!(
+                        "finishing: writing the last frames to {}",
+                        dir.display()
+                    ));
+                });
             }
         }
         if let Some(outcome) = &self.last_outcome {

@@ -81,10 +81,10 @@ impl TremorApp {
     /// (Re)starts the device of the current settings, carrying the control points over.
     pub fn restart_source(&mut self) {
         if let Some(old) = self.source.take() {
-            if self.trial.is_busy() {
-                self.trial.stop(&old);
-            }
-            self.spare_tracker = old.stop();
+            self.trial.stop(&old);
+            let (tracker, events) = old.stop();
+            self.spare_tracker = tracker;
+            self.handle_events(events);
         }
         let mut tracker = self.spare_tracker.clone();
         tracker.clear_history();
@@ -147,6 +147,16 @@ impl TremorApp {
         }
     }
 
+    /// Hands pipeline events to the trial (a recording's outcome) and the message log.
+    fn handle_events(&mut self, events: Vec<tremorscan::pipeline::PipelineEvent>) {
+        for e in &events {
+            if let tremorscan::pipeline::PipelineEvent::RecordingStopped(result) = e {
+                self.trial.recording_stopped(result);
+            }
+        }
+        self.messages.pipeline_events(events);
+    }
+
     /// Applies the point edits of this frame.
     pub fn apply_edits(&mut self, edits: Vec<PointEdit>) {
         for edit in edits {
@@ -189,9 +199,15 @@ impl TremorApp {
     /// One frame of the whole window.
     pub fn frame_ui(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
-        if let Some(source) = &mut self.source {
-            source.poll();
-            self.messages.pipeline_events(source.pipeline.events());
+        let events = match &mut self.source {
+            Some(source) => {
+                source.poll();
+                source.pipeline.events()
+            }
+            None => Vec::new(),
+        };
+        self.handle_events(events);
+        if let Some(source) = &self.source {
             let mut notes = Vec::new();
             self.trial.tick(source, &mut notes);
             for n in notes {
@@ -221,6 +237,7 @@ impl TremorApp {
                     dir.display()
                 )),
                 TrialState::Countdown { .. } => Some("recording soon (countdown)".to_string()),
+                TrialState::Finishing { .. } => Some("finishing the recording".to_string()),
                 TrialState::Idle => None,
             };
             let device = self.source.as_ref().map_or("no device".to_string(), |s| {
@@ -296,15 +313,15 @@ impl eframe::App for TremorApp {
     }
 
     fn on_exit(&mut self) {
-        if self.trial.is_busy() {
-            if let Some(source) = &self.source {
-                // Closing the window ends the recording cleanly: every queued frame is written.
-                self.trial.stop(source);
-            }
+        if let Some(source) = &self.source {
+            self.trial.stop(source);
         }
         self.persist();
+        // Stopping the pipeline waits for the recorder: every queued frame is written before the
+        // app exits.
         if let Some(source) = self.source.take() {
-            source.stop();
+            let (_, events) = source.stop();
+            self.handle_events(events);
         }
     }
 }
