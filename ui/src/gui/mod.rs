@@ -29,6 +29,33 @@ pub struct GuiArgs {
     pub points: Vec<String>,
 }
 
+/// The window icon, from the embedded 256 px PNG (an empty icon if it cannot be decoded).
+fn window_icon() -> egui::IconData {
+    const PNG: &[u8] = include_bytes!("../../../assets/icons/tremorscan-256.png");
+    decode_icon(PNG).unwrap_or_default()
+}
+
+fn decode_icon(bytes: &[u8]) -> Option<egui::IconData> {
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+    decoder.set_transformations(png::Transformations::normalize_to_color8());
+    let mut reader = decoder.read_info().ok()?;
+    let mut buf = vec![0; reader.output_buffer_size()?];
+    let info = reader.next_frame(&mut buf).ok()?;
+    let rgba: Vec<u8> = match info.color_type {
+        png::ColorType::Rgba => buf[..info.buffer_size()].to_vec(),
+        png::ColorType::Rgb => buf[..info.buffer_size()]
+            .chunks_exact(3)
+            .flat_map(|p| [p[0], p[1], p[2], 255])
+            .collect(),
+        _ => return None,
+    };
+    Some(egui::IconData {
+        rgba,
+        width: info.width,
+        height: info.height,
+    })
+}
+
 /// Parses `U,V` into a pixel.
 fn parse_pixel(text: &str) -> Result<(f64, f64)> {
     let parts: Vec<f64> = text
@@ -57,6 +84,8 @@ pub fn run(args: &GuiArgs) -> Result<()> {
         depth_buffer: 32,
         viewport: egui::ViewportBuilder::default()
             .with_title("tremorscan")
+            .with_app_id("tremorscan")
+            .with_icon(window_icon())
             .with_inner_size([1400.0, 900.0])
             .with_min_inner_size([900.0, 600.0]),
         ..Default::default()
@@ -86,4 +115,26 @@ pub fn run(args: &GuiArgs) -> Result<()> {
         }),
     )
     .map_err(|e| anyhow!("the window could not open: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_embedded_icon_decodes_to_256_px_rgba() {
+        let icon = super::window_icon();
+        assert_eq!((icon.width, icon.height), (256, 256));
+        assert_eq!(icon.rgba.len(), 256 * 256 * 4);
+        // Transparent corners, opaque centre.
+        assert_eq!(icon.rgba[3], 0);
+        assert_eq!(icon.rgba[(128 * 256 + 128) * 4 + 3], 255);
+    }
+
+    #[test]
+    fn points_parse_or_say_what_is_expected() {
+        assert_eq!(super::parse_pixel("320, 200").ok(), Some((320.0, 200.0)));
+        for bad in ["320", "a,b", "1,2,3", "nan,1"] {
+            let e = super::parse_pixel(bad).expect_err(bad);
+            assert!(e.to_string().contains("expected U,V"), "{e}");
+        }
+    }
 }
