@@ -66,6 +66,7 @@ impl PlaybackControl {
             if s.next_frame >= self.frame_count {
                 s.next_frame = 0;
             }
+            s.steps = 0;
             s.playing = true;
         });
     }

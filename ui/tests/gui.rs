@@ -10,6 +10,7 @@ use tremorscan_ui::gui::app::TremorApp;
 use tremorscan_ui::gui::cloud_view::install_renderer;
 use tremorscan_ui::gui::settings::{Settings, UnwrapChoice};
 use tremorscan_ui::gui::trial_ui::TrialState;
+use tremorscan_ui::render::orbit::project;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("tremorscan-gui-{name}-{}", std::process::id()));
@@ -420,6 +421,58 @@ fn settings_apply_a_new_pattern_and_a_point_can_be_dragged() {
         (moved - 40.0 * scale).abs() <= 2.0,
         "moved {moved} px, expected {}",
         40.0 * scale
+    );
+
+    // In the 3D view: drag the point's marker 30 points right; it lands on the surface there.
+    let before = points[0].pixel;
+    step_until(
+        &mut h,
+        Duration::from_secs(60),
+        "the moved point measured",
+        |app| app.tracker_copy().points[0].latest_position_mm().is_some(),
+    );
+    let view = h.get_by_label("3D view").rect();
+    let marker = {
+        let app = h.state();
+        let camera = app.cloud_view.camera.expect("a 3D camera");
+        let m = camera.clip_from_world(view.width() / view.height());
+        let q = app.tracker_copy().points[0]
+            .latest_position_mm()
+            .expect("measured");
+        let (s, _) = project(
+            &m,
+            [q[0] as f32, q[1] as f32, q[2] as f32],
+            [view.width(), view.height()],
+        )
+        .expect("the point is in view");
+        view.min + egui::vec2(s[0], s[1])
+    };
+    h.drag_at(marker);
+    h.run_steps(1);
+    h.hover_at(marker + egui::vec2(15.0, 0.0));
+    h.run_steps(1);
+    h.hover_at(marker + egui::vec2(30.0, 0.0));
+    h.run_steps(1);
+    h.drop_at(marker + egui::vec2(30.0, 0.0));
+    h.run_steps(2);
+    let points = h.state().tracker_copy().points;
+    assert_eq!(
+        points.len(),
+        1,
+        "the 3D drag moved the point, it did not add one"
+    );
+    // The top view looks along the camera's axis: screen right is +u.
+    assert!(
+        points[0].pixel.0 > before.0 + 5.0,
+        "{:?} -> {:?}",
+        before,
+        points[0].pixel
+    );
+    assert!(
+        (points[0].pixel.1 - before.1).abs() < 5.0,
+        "{:?} -> {:?}",
+        before,
+        points[0].pixel
     );
     let _ = std::fs::remove_dir_all(dir);
 }

@@ -1,9 +1,10 @@
 //! The 3D view: the egui side of [`crate::render::point_cloud`]. The renderer lives in egui-wgpu's
 //! callback resources (created once with the app); each frame this view adds a paint callback
 //! that uploads the newest cloud (only when it changed) and the view matrix, then draws into
-//! egui's own render pass. Dragging orbits, right- or middle-dragging pans, scrolling zooms, a
-//! click picks the surface point under the pointer and adds a control point there; markers are
-//! projected with the shader's own matrix.
+//! egui's own render pass. Dragging orbits (dragging a marker moves its point to the surface
+//! point where it is dropped), right- or middle-dragging pans, scrolling zooms, a click picks
+//! the surface point under the pointer and adds a control point there; markers are projected
+//! with the shader's own matrix.
 
 use super::points::{draw_marker, PointColours, PointEdit};
 use crate::render::orbit::{pick, project, OrbitCamera, ViewPreset};
@@ -85,6 +86,8 @@ pub struct CloudView {
     pub has_renderer: bool,
     /// Radius of the cloud to fit into the view at the next draw (when the view's size is known).
     fit_radius_mm: Option<f32>,
+    /// The control point whose marker is being dragged, and where the pointer is.
+    dragging: Option<(u64, egui::Pos2)>,
 }
 
 impl CloudView {
@@ -96,6 +99,7 @@ impl CloudView {
             uploaded: None,
             has_renderer,
             fit_radius_mm: None,
+            dragging: None,
         }
     }
 
@@ -167,9 +171,31 @@ impl CloudView {
             let half_x = (aspect * half_y.tan()).atan();
             camera.distance_mm = radius / half_y.min(half_x).sin().max(0.05);
         }
+        let aspect = rect.width() / rect.height().max(1.0);
+        let view_size = [rect.width(), rect.height()];
+        if response.drag_started_by(PointerButton::Primary) {
+            // A drag that starts on a marker moves that point; anywhere else it orbits.
+            let origin = ui.input(|i| i.pointer.press_origin());
+            let m = camera.clip_from_world(aspect);
+            self.dragging = origin.and_then(|o| {
+                tracker
+                    .points
+                    .iter()
+                    .find(|p| {
+                        marker_at(&m, p, rect, view_size).is_some_and(|c| c.distance(o) < 10.0)
+                    })
+                    .map(|p| (p.id, o))
+            });
+        }
         if response.dragged_by(PointerButton::Primary) {
-            let d = response.drag_delta();
-            camera.orbit(d.x, d.y);
+            match (&mut self.dragging, response.interact_pointer_pos()) {
+                (Some((_, at)), Some(now)) => *at = now,
+                (Some(_), None) => {}
+                (None, _) => {
+                    let d = response.drag_delta();
+                    camera.orbit(d.x, d.y);
+                }
+            }
         }
         if response.dragged_by(PointerButton::Secondary)
             || response.dragged_by(PointerButton::Middle)
@@ -183,8 +209,22 @@ impl CloudView {
                 camera.zoom((scroll * 0.002).exp());
             }
         }
-        let clip_from_world = camera.clip_from_world(rect.width() / rect.height().max(1.0));
-        let view_size = [rect.width(), rect.height()];
+        let clip_from_world = camera.clip_from_world(aspect);
+        if response.drag_stopped() {
+            if let (Some((id, at)), Some(f)) = (self.dragging.take(), frame) {
+                let local = at - rect.min;
+                if let Some(i) = pick(
+                    &clip_from_world,
+                    &f.cloud.point_in_camera_mm,
+                    view_size,
+                    [local.x, local.y],
+                    8.0,
+                ) {
+                    let pixel = ((i % f.cloud.width) as f64, (i / f.cloud.width) as f64);
+                    edits.push(PointEdit::Move { id, pixel });
+                }
+            }
+        }
         if response.clicked() {
             if let (Some(at), Some(f)) = (response.interact_pointer_pos(), frame) {
                 let local = at - rect.min;
@@ -237,19 +277,34 @@ impl CloudView {
         }
         let painter = ui.painter_at(rect);
         for p in &tracker.points {
-            let Some(q) = p.latest_position_mm() else {
-                continue;
+            let centre = match self.dragging {
+                Some((id, at)) if id == p.id => Some(at),
+                _ => marker_at(&clip_from_world, p, rect, view_size),
             };
-            let q = [q[0] as f32, q[1] as f32, q[2] as f32];
-            if let Some((s, _)) = project(&clip_from_world, q, view_size) {
-                let centre = rect.min + Vec2::new(s[0], s[1]);
+            if let Some(centre) = centre {
                 draw_marker(&painter, centre, colours.colour(p.id), &p.name);
             }
         }
         response.on_hover_text(
-            "Drag: orbit · right/middle drag: pan · scroll: zoom · click: add a control point",
+            "Drag: orbit (on a marker: move the point) · right/middle drag: pan · scroll: zoom · click: add a control point",
         );
     }
+}
+
+/// Where a control point's newest measured position is drawn, screen points.
+fn marker_at(
+    clip_from_world: &nalgebra::Matrix4<f32>,
+    p: &tremorscan::tremor::LivePoint,
+    rect: egui::Rect,
+    view_size: [f32; 2],
+) -> Option<egui::Pos2> {
+    let q = p.latest_position_mm()?;
+    let (s, _) = project(
+        clip_from_world,
+        [q[0] as f32, q[1] as f32, q[2] as f32],
+        view_size,
+    )?;
+    Some(rect.min + Vec2::new(s[0], s[1]))
 }
 
 /// The distance from `centre` within which 95 % of the valid points lie (every 7th point), mm.
