@@ -71,6 +71,35 @@ impl Camera for MemoryCamera {
     }
 }
 
+/// A lossless pipeline over `frames` shown `repeat` times, held until `go` is set.
+fn lossless_pipeline(
+    rig: &VirtualRig,
+    frames: &[Frame],
+    repeat: usize,
+) -> (Pipeline, Arc<AtomicBool>) {
+    let go = Arc::new(AtomicBool::new(false));
+    let camera = MemoryCamera {
+        frames: frames.to_vec(),
+        repeat,
+        next: 0,
+        go: Arc::clone(&go),
+        interval: Duration::ZERO,
+    };
+    let config = PipelineConfig {
+        decode_policy: DecodePolicy::Lossless,
+        ..PipelineConfig::default()
+    };
+    let pipeline = Pipeline::start(
+        Box::new(camera),
+        rig.sequence.clone(),
+        rig.config.cross_talk,
+        rig.stereo_model(),
+        config,
+    )
+    .unwrap();
+    (pipeline, go)
+}
+
 #[test]
 fn a_lossless_replay_decodes_every_window() {
     let rig = rig(320, 200);
@@ -169,26 +198,7 @@ fn recording_keeps_every_frame_and_an_overrun_stops_it_loudly() {
     // Part 1: a recording that keeps up holds every captured frame, bit for bit.
     let small = rig(160, 100);
     let frames = rendered(&small, 6);
-    let go = Arc::new(AtomicBool::new(false));
-    let camera = MemoryCamera {
-        frames: frames.clone(),
-        repeat: 5,
-        next: 0,
-        go: Arc::clone(&go),
-        interval: Duration::ZERO,
-    };
-    let config = PipelineConfig {
-        decode_policy: DecodePolicy::Lossless,
-        ..PipelineConfig::default()
-    };
-    let pipeline = Pipeline::start(
-        Box::new(camera),
-        small.sequence.clone(),
-        small.config.cross_talk,
-        small.stereo_model(),
-        config,
-    )
-    .unwrap();
+    let (pipeline, go) = lossless_pipeline(&small, &frames, 5);
     let dir = scratch("record");
     pipeline
         .start_recording(&dir, manifest(&small), TrialJson::default())
@@ -291,26 +301,7 @@ fn devices_pace_and_end_as_asked() {
 fn ending_a_recording_without_waiting_still_writes_every_frame_and_reports_it() {
     let small = rig(160, 100);
     let frames = rendered(&small, 6);
-    let go = Arc::new(AtomicBool::new(false));
-    let camera = MemoryCamera {
-        frames: frames.clone(),
-        repeat: 4,
-        next: 0,
-        go: Arc::clone(&go),
-        interval: Duration::ZERO,
-    };
-    let config = PipelineConfig {
-        decode_policy: DecodePolicy::Lossless,
-        ..PipelineConfig::default()
-    };
-    let pipeline = Pipeline::start(
-        Box::new(camera),
-        small.sequence.clone(),
-        small.config.cross_talk,
-        small.stereo_model(),
-        config,
-    )
-    .unwrap();
+    let (pipeline, go) = lossless_pipeline(&small, &frames, 4);
     let dir = scratch("end-recording");
     pipeline
         .start_recording(&dir, manifest(&small), TrialJson::default())

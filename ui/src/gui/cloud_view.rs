@@ -210,34 +210,29 @@ impl CloudView {
             }
         }
         let clip_from_world = camera.clip_from_world(aspect);
+        // The camera pixel of the surface point drawn under `at` (screen points).
+        let pixel_under = |at: egui::Pos2| {
+            let f = frame?;
+            let local = at - rect.min;
+            let i = pick(
+                &clip_from_world,
+                &f.cloud.point_in_camera_mm,
+                view_size,
+                [local.x, local.y],
+                8.0,
+            )?;
+            Some(((i % f.cloud.width) as f64, (i / f.cloud.width) as f64))
+        };
         if response.drag_stopped() {
-            if let (Some((id, at)), Some(f)) = (self.dragging.take(), frame) {
-                let local = at - rect.min;
-                if let Some(i) = pick(
-                    &clip_from_world,
-                    &f.cloud.point_in_camera_mm,
-                    view_size,
-                    [local.x, local.y],
-                    8.0,
-                ) {
-                    let pixel = ((i % f.cloud.width) as f64, (i / f.cloud.width) as f64);
+            if let Some((id, at)) = self.dragging.take() {
+                if let Some(pixel) = pixel_under(at) {
                     edits.push(PointEdit::Move { id, pixel });
                 }
             }
         }
         if response.clicked() {
-            if let (Some(at), Some(f)) = (response.interact_pointer_pos(), frame) {
-                let local = at - rect.min;
-                if let Some(i) = pick(
-                    &clip_from_world,
-                    &f.cloud.point_in_camera_mm,
-                    view_size,
-                    [local.x, local.y],
-                    8.0,
-                ) {
-                    let pixel = ((i % f.cloud.width) as f64, (i / f.cloud.width) as f64);
-                    edits.push(PointEdit::Add { pixel });
-                }
+            if let Some(pixel) = response.interact_pointer_pos().and_then(pixel_under) {
+                edits.push(PointEdit::Add { pixel });
             }
         }
         if let Some(f) = frame {
