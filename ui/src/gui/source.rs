@@ -7,8 +7,9 @@
 //! ```
 //!
 //! The tracker runs on its own named thread so a slow window (software rendering draws a few
-//! frames a second) never costs a tracked sample: the consumer queue holds a second of clouds at
-//! the rates this machine reaches and counts what it drops, shown in the status bar.
+//! frames a second) never costs a tracked sample: the consumer queue holds a few clouds (the
+//! tracker needs well under a millisecond for each) and counts what it drops, shown in the
+//! status bar.
 
 use super::settings::{DeviceChoice, Settings};
 use anyhow::{Context, Result};
