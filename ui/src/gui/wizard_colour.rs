@@ -182,11 +182,7 @@ impl ColourWizard {
         let Some(Ok(result)) = &self.result else {
             return Err("there is no successful fit to save".to_string());
         };
-        let path = PathBuf::from(self.save_path.trim());
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
-                .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-        }
+        let path = save_target(&self.save_path)?;
         ColourFile::new(&result.cross_talk, result.residual_rms_gray)
             .save(&path)
             .map_err(|e| e.to_string())?;
@@ -201,6 +197,16 @@ pub enum WizardOutcome {
     Closed,
     /// A calibration file was saved: use it.
     Saved(PathBuf),
+}
+
+/// The path typed for a calibration file, with its folder created.
+pub fn save_target(typed: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(typed.trim());
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    }
+    Ok(path)
 }
 
 /// Asks where to save a calibration file (JSON), starting from `current`.

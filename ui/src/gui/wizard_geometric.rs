@@ -97,11 +97,7 @@ impl GeometricWizard {
         let Some(Ok(c)) = &self.result else {
             return Err("there is no successful calibration to save".to_string());
         };
-        let path = PathBuf::from(self.save_path.trim());
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
-                .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-        }
+        let path = super::wizard_colour::save_target(&self.save_path)?;
         let pattern = self
             .config
             .default_sequence()
