@@ -57,6 +57,18 @@ fn step_until(
     }
 }
 
+/// Presses at `from`, moves right by `points` in two steps, releases.
+fn drag_right(h: &mut Harness<'_, TremorApp>, from: egui::Pos2, points: f32) {
+    h.drag_at(from);
+    h.run_steps(1);
+    h.hover_at(from + egui::vec2(points / 2.0, 0.0));
+    h.run_steps(1);
+    h.hover_at(from + egui::vec2(points, 0.0));
+    h.run_steps(1);
+    h.drop_at(from + egui::vec2(points, 0.0));
+    h.run_steps(2);
+}
+
 /// Types `path` into the toolbar's session field and presses "Open replay".
 fn open_replay_via_toolbar(h: &mut Harness<'_, TremorApp>, path: &str) {
     h.get_by_label("Session:").focus();
@@ -401,14 +413,7 @@ fn settings_apply_a_new_pattern_and_a_point_can_be_dragged() {
     h.run_steps(2);
     let rect = h.get_by_label("camera image").rect();
     let start = rect.center();
-    h.drag_at(start);
-    h.run_steps(1);
-    h.hover_at(start + egui::vec2(20.0, 0.0));
-    h.run_steps(1);
-    h.hover_at(start + egui::vec2(40.0, 0.0));
-    h.run_steps(1);
-    h.drop_at(start + egui::vec2(40.0, 0.0));
-    h.run_steps(2);
+    drag_right(&mut h, start, 40.0);
     let points = h.state().tracker_copy().points;
     assert_eq!(
         points.len(),
@@ -447,14 +452,7 @@ fn settings_apply_a_new_pattern_and_a_point_can_be_dragged() {
         .expect("the point is in view");
         view.min + egui::vec2(s[0], s[1])
     };
-    h.drag_at(marker);
-    h.run_steps(1);
-    h.hover_at(marker + egui::vec2(15.0, 0.0));
-    h.run_steps(1);
-    h.hover_at(marker + egui::vec2(30.0, 0.0));
-    h.run_steps(1);
-    h.drop_at(marker + egui::vec2(30.0, 0.0));
-    h.run_steps(2);
+    drag_right(&mut h, marker, 30.0);
     let points = h.state().tracker_copy().points;
     assert_eq!(
         points.len(),
