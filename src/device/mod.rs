@@ -5,6 +5,9 @@
 //!
 //! Devices are driven from one thread each (`Send`), never shared.
 
+pub mod bayer;
+#[cfg(feature = "genicam")]
+pub mod genicam;
 pub mod playback;
 pub mod replay;
 pub mod virtual_rig;
@@ -22,6 +25,9 @@ pub enum DeviceError {
     /// A finite source (a replayed session) has delivered its last frame.
     #[error("end of stream after {frames} frames")]
     EndOfStream { frames: u64 },
+    /// A device could not be found, opened or configured.
+    #[error("{0}")]
+    Open(String),
     #[error("the camera is gone: {0}")]
     Disconnected(String),
     #[error("{0}")]
