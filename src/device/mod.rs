@@ -8,6 +8,7 @@
 pub mod bayer;
 #[cfg(feature = "genicam")]
 pub mod genicam;
+pub mod lightcrafter;
 pub mod playback;
 pub mod replay;
 pub mod virtual_rig;
