@@ -11,6 +11,7 @@ pub mod genicam;
 pub mod lightcrafter;
 pub mod playback;
 pub mod replay;
+pub mod screen_sync;
 pub mod virtual_rig;
 
 pub use playback::{PlaybackCamera, PlaybackControl, PlaybackState};
