@@ -1,13 +1,14 @@
 //! Second-screen synchronisation against a simulated screen and camera with known delays: the
 //! delay is measured from the flash code, every kept frame carries the pattern it really saw,
-//! frames that straddle a change are dropped, and a camera that does not see the screen is told.
+//! frames that straddle a change are dropped, a camera that does not see the screen is told, and
+//! a projector-triggered camera locks its pattern phase and finds it again after a glitch.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
 use std::sync::{Arc, Mutex};
 use tremorscan::device::screen_sync::{
     estimate_delay, flash_code, DelayEstimate, PatternSchedule, Seen, Shown, SyncError,
-    SyncedCamera,
 };
+use tremorscan::device::synced_camera::{SyncMode, SyncedCamera};
 use tremorscan::device::{Camera, DeviceError, Grabbed};
 use tremorscan::frame::Frame;
 
@@ -200,8 +201,15 @@ fn kept_frames_carry_the_pattern_they_saw_and_straddling_ones_are_dropped() {
     };
     let schedule = Arc::new(Mutex::new(shown.recorded));
     let guard_s = 1.5e-3;
-    let mut synced = SyncedCamera::new(sim, schedule, estimate, EXPOSURE_S, guard_s)
-        .with_clock(move || *clock.lock().unwrap());
+    let mut synced = SyncedCamera::new(
+        sim,
+        schedule,
+        SyncMode::FreeRunning,
+        estimate,
+        EXPOSURE_S,
+        guard_s,
+    )
+    .with_clock(move || *clock.lock().unwrap());
     let stats = synced.stats();
     let mut frame = Frame::empty();
     let mut kept = 0;
@@ -252,4 +260,97 @@ fn the_schedule_answers_what_an_exposure_saw() {
         .unwrap();
     assert!(longest <= 16, "{longest}");
     assert!(code.iter().filter(|&&w| w).count() > 100);
+}
+
+/// A camera triggered by the projector once per image: frame k is exposed during image k's
+/// light (7.5 ms of each 8.33 ms at 120 Hz) and arrives 6 ms after the exposure ends.
+struct TriggeredCamera {
+    /// Light start of each image and its true pattern.
+    images: Vec<(f64, usize)>,
+    k: usize,
+    clock: Arc<Mutex<f64>>,
+    rng: Lcg,
+}
+
+impl Camera for TriggeredCamera {
+    fn name(&self) -> String {
+        "triggered".into()
+    }
+    fn size(&self) -> (usize, usize) {
+        (4, 4)
+    }
+    fn fps(&self) -> f64 {
+        120.0
+    }
+    fn grab(&mut self, frame: &mut Frame) -> Result<Grabbed, DeviceError> {
+        let Some(&(light_from, _)) = self.images.get(self.k) else {
+            return Err(DeviceError::EndOfStream {
+                frames: self.k as u64,
+            });
+        };
+        *frame = Frame::new(4, 4, 3).unwrap();
+        frame.time_s = self.k as f64;
+        *self.clock.lock().unwrap() = light_from + 0.0075 + TRANSFER_S + JITTER_S * self.rng.next();
+        self.k += 1;
+        Ok(Grabbed {
+            sequence_number: self.k as u64 - 1,
+        })
+    }
+}
+
+#[test]
+fn a_triggered_camera_locks_its_phase_and_relocks_after_a_missed_refresh() {
+    let refresh_s = 1.0 / 120.0;
+    let mut rng = Lcg(9);
+    // 300 refreshes (2.5 s, within the 3 s of history a schedule keeps); at refresh 150 the app
+    // misses a frame and shows pattern 2 twice, which shifts the cycle by one from then on.
+    let patterns: Vec<usize> = (0..300)
+        .map(|i| if i < 150 { i % 3 } else { (i + 2) % 3 })
+        .collect();
+    let mut schedule = PatternSchedule::default();
+    let mut images = Vec::new();
+    for (i, &p) in patterns.iter().enumerate() {
+        let handed_over = 0.1 + i as f64 * refresh_s;
+        schedule.push(Shown {
+            pattern_index: p,
+            level: 0.5,
+            from_s: handed_over + 0.3e-3 * rng.next(),
+        });
+        images.push((handed_over + DISPLAY_LATENCY_S, p));
+    }
+    let truth: Vec<usize> = images.iter().map(|i| i.1).collect();
+    let clock = Arc::new(Mutex::new(0.0));
+    let camera = TriggeredCamera {
+        images,
+        k: 0,
+        clock: Arc::clone(&clock),
+        rng: Lcg(1),
+    };
+    let delay = DelayEstimate {
+        delay_s: DISPLAY_LATENCY_S + TRANSFER_S,
+        uncertainty_s: 0.5e-3,
+        correlation: 1.0,
+    };
+    let mut synced = SyncedCamera::new(
+        camera,
+        Arc::new(Mutex::new(schedule)),
+        SyncMode::Triggered { pattern_count: 3 },
+        delay,
+        0.0075,
+        0.5e-3,
+    )
+    .with_clock(move || *clock.lock().unwrap());
+    let stats = synced.stats();
+    let mut frame = Frame::empty();
+    let mut delivered = 0;
+    while synced.grab(&mut frame).is_ok() {
+        let k = frame.time_s as usize;
+        assert_eq!(frame.pattern_index, truth[k], "frame {k}");
+        delivered += 1;
+    }
+    // Dropped: 4 frames before the first lock (the 5th agreeing one is delivered), then the
+    // 3 disagreeing frames after the glitch and 4 more while it locks again.
+    let uncertain = stats.uncertain.load(std::sync::atomic::Ordering::Relaxed);
+    assert_eq!(delivered + uncertain, 300);
+    assert_eq!(uncertain, 4 + 3 + 4, "{uncertain}");
 }

@@ -12,6 +12,7 @@ pub mod lightcrafter;
 pub mod playback;
 pub mod replay;
 pub mod screen_sync;
+pub mod synced_camera;
 pub mod virtual_rig;
 
 pub use playback::{PlaybackCamera, PlaybackControl, PlaybackState};

@@ -11,14 +11,12 @@
 //!   black/white code ([`flash_code`]) while the camera watches, and `D` is the delay at which the
 //!   brightness the schedule predicts for each frame correlates best with what the camera saw.
 //! * A frame whose exposure (widened by a guard for jitter) lies inside one pattern's time gets
-//!   that pattern; one that straddles a change is uncertain and dropped ([`SyncedCamera`]), and
-//!   counted. The rate of frames kept is the rate achieved, which the status bar states.
+//!   that pattern; one that straddles a change is uncertain and dropped
+//!   ([`SyncedCamera`](super::synced_camera::SyncedCamera)), and counted. The rate of frames kept
+//!   is the rate achieved, which the status bar states.
 
-use super::{Camera, DeviceError, Grabbed};
-use crate::frame::Frame;
 use std::collections::VecDeque;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::OnceLock;
 use std::time::Instant;
 
 /// Seconds since the first call in this process: the clock both sides of the sync share.
@@ -238,99 +236,4 @@ fn pearson(pairs: &[(f64, f64)]) -> f64 {
         return 0.0;
     }
     sxy / (sxx * syy).sqrt()
-}
-
-/// Counters of a synced camera, shared with the status bar.
-#[derive(Debug, Default)]
-pub struct SyncStats {
-    pub delivered: AtomicU64,
-    pub uncertain: AtomicU64,
-}
-
-/// A camera whose frames are labelled with the screen pattern they saw; uncertain ones dropped.
-pub struct SyncedCamera<C: Camera> {
-    inner: C,
-    schedule: Arc<Mutex<PatternSchedule>>,
-    pub delay_s: f64,
-    pub exposure_s: f64,
-    pub guard_s: f64,
-    stats: Arc<SyncStats>,
-    clock: Box<dyn Fn() -> f64 + Send>,
-}
-
-impl<C: Camera> SyncedCamera<C> {
-    pub fn new(
-        inner: C,
-        schedule: Arc<Mutex<PatternSchedule>>,
-        delay: DelayEstimate,
-        exposure_s: f64,
-        guard_s: f64,
-    ) -> Self {
-        // `guard_s` covers jitter; the delay's own uncertainty is added to it.
-        Self {
-            inner,
-            schedule,
-            delay_s: delay.delay_s,
-            exposure_s,
-            guard_s: guard_s + delay.uncertainty_s,
-            stats: Arc::default(),
-            clock: Box::new(host_time_s),
-        }
-    }
-
-    /// The guard actually applied: the one asked for plus the delay's uncertainty.
-    pub fn effective_guard_s(&self) -> f64 {
-        self.guard_s
-    }
-
-    /// Replaces the host clock (simulations).
-    pub fn with_clock(mut self, clock: impl Fn() -> f64 + Send + 'static) -> Self {
-        self.clock = Box::new(clock);
-        self
-    }
-
-    pub fn stats(&self) -> Arc<SyncStats> {
-        Arc::clone(&self.stats)
-    }
-}
-
-impl<C: Camera> Camera for SyncedCamera<C> {
-    fn name(&self) -> String {
-        format!("{} + second screen", self.inner.name())
-    }
-
-    fn size(&self) -> (usize, usize) {
-        self.inner.size()
-    }
-
-    fn fps(&self) -> f64 {
-        self.inner.fps()
-    }
-
-    fn grab(&mut self, frame: &mut Frame) -> Result<Grabbed, DeviceError> {
-        loop {
-            let grabbed = self.inner.grab(frame)?;
-            let end = (self.clock)() - self.delay_s;
-            let seen = self
-                .schedule
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .seen_during(end - self.exposure_s, end, self.guard_s);
-            match seen {
-                Seen::Pattern(index) if index != usize::MAX => {
-                    frame.pattern_index = index;
-                    self.stats.delivered.fetch_add(1, Ordering::Relaxed);
-                    // Dropped uncertain frames are not losses: renumber around them, so that
-                    // gaps still mean frames the camera lost.
-                    let uncertain = self.stats.uncertain.load(Ordering::Relaxed);
-                    return Ok(Grabbed {
-                        sequence_number: grabbed.sequence_number.saturating_sub(uncertain),
-                    });
-                }
-                _ => {
-                    self.stats.uncertain.fetch_add(1, Ordering::Relaxed);
-                }
-            }
-        }
-    }
 }
