@@ -72,6 +72,26 @@ pub trait Camera: Send {
     fn grab(&mut self, frame: &mut Frame) -> Result<Grabbed, DeviceError>;
 }
 
+/// A boxed camera is a camera (so wrappers such as
+/// [`SyncedCamera`](synced_camera::SyncedCamera) take any device).
+impl<C: Camera + ?Sized> Camera for Box<C> {
+    fn name(&self) -> String {
+        (**self).name()
+    }
+
+    fn size(&self) -> (usize, usize) {
+        (**self).size()
+    }
+
+    fn fps(&self) -> f64 {
+        (**self).fps()
+    }
+
+    fn grab(&mut self, frame: &mut Frame) -> Result<Grabbed, DeviceError> {
+        (**self).grab(frame)
+    }
+}
+
 /// A projector showing a cyclic pattern sequence.
 pub trait Projector: Send {
     fn name(&self) -> String;

@@ -7,8 +7,7 @@ use super::{Chessboard, GroundTruth, RigConfig, RigError, SceneConfig, VirtualRi
 use crate::calibrate::{CalibrationCapture, TABLE1_LEVELS};
 use crate::geometry::Pose;
 use crate::pattern::{cps_rgb, Axis, PatternSequence};
-use crate::session::manifest::{ColorJson, ExtrinsicsJson, LensJson, PatternJson};
-use crate::session::{Manifest, SESSION_FORMAT};
+use crate::session::Manifest;
 use nalgebra::{Rotation3, Vector3};
 
 /// The rig `config` looking at a white target for the colour calibration, its projector gain set
@@ -49,19 +48,11 @@ impl VirtualRig {
     /// The manifest of a measurement session recorded with this rig: its sequence, cross-talk
     /// and exact calibration; no frames listed yet.
     pub fn session_manifest(&self) -> Manifest {
-        Manifest {
-            format: SESSION_FORMAT.to_string(),
-            pattern: PatternJson::from_sequence(&self.sequence),
-            color: Some(ColorJson::from_cross_talk(&self.config.cross_talk)),
-            camera: LensJson::from_lens(&self.config.camera),
-            projector: LensJson::from_lens(&self.config.projector),
-            extrinsics: Some(ExtrinsicsJson::from_pose(
-                &self.config.projector_from_camera,
-            )),
-            frames: Vec::new(),
-            recording: None,
-            trial: None,
-        }
+        Manifest::for_rig(
+            &self.sequence,
+            &self.config.cross_talk,
+            &self.stereo_model(),
+        )
     }
 }
 

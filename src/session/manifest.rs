@@ -34,6 +34,27 @@ pub struct Manifest {
     pub trial: Option<TrialJson>,
 }
 
+impl Manifest {
+    /// The manifest of a rig: its sequence, colour cross-talk and calibrated geometry, no frames.
+    pub fn for_rig(
+        sequence: &crate::pattern::PatternSequence,
+        cross_talk: &CrossTalk,
+        stereo: &crate::triangulate::StereoModel,
+    ) -> Self {
+        Self {
+            format: SESSION_FORMAT.to_string(),
+            pattern: PatternJson::from_sequence(sequence),
+            color: Some(ColorJson::from_cross_talk(cross_talk)),
+            camera: LensJson::from_lens(&stereo.camera),
+            projector: LensJson::from_lens(&stereo.projector),
+            extrinsics: Some(ExtrinsicsJson::from_pose(&stereo.projector_from_camera)),
+            frames: Vec::new(),
+            recording: None,
+            trial: None,
+        }
+    }
+}
+
 /// The container a live recording wrote its frames to (`frames.cpsr`, see `container`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RecordingJson {

@@ -2,60 +2,18 @@
 //! runs on the virtual rig as a user would see it; widgets are found by their labels, clicked,
 //! and the app's state checked.
 
+mod kit;
+
 use egui_kittest::kittest::Queryable;
 use egui_kittest::Harness;
-use std::path::PathBuf;
+use kit::{harness, scratch, settings, step_until};
+
 use std::time::{Duration, Instant};
 use tremorscan_ui::gui::app::TremorApp;
 use tremorscan_ui::gui::cloud_view::install_renderer;
 use tremorscan_ui::gui::settings::{Settings, UnwrapChoice};
 use tremorscan_ui::gui::trial_ui::TrialState;
 use tremorscan_ui::render::orbit::project;
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tremorscan-gui-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    dir
-}
-
-fn settings(dir: &std::path::Path) -> Settings {
-    Settings {
-        sessions_dir: dir.join("sessions"),
-        export_dir: dir.join("exports"),
-        countdown_seconds: 0.0,
-        ..Settings::default()
-    }
-}
-
-fn harness(settings: Settings) -> Harness<'static, TremorApp> {
-    Harness::builder()
-        .with_size(egui::vec2(1400.0, 900.0))
-        .wgpu()
-        .build_eframe(move |cc| {
-            // Kittest's wgpu pass has no depth attachment, so the renderer gets none either.
-            let has_renderer = cc.wgpu_render_state.as_ref().is_some_and(|s| {
-                install_renderer(s, None);
-                true
-            });
-            TremorApp::new(settings, None, has_renderer)
-        })
-}
-
-/// Steps the app until `done` holds, failing after `timeout`.
-fn step_until(
-    h: &mut Harness<'_, TremorApp>,
-    timeout: Duration,
-    what: &str,
-    done: impl Fn(&TremorApp) -> bool,
-) {
-    let start = Instant::now();
-    while !done(h.state()) {
-        assert!(start.elapsed() < timeout, "timed out waiting for {what}");
-        h.run_steps(1);
-        std::thread::sleep(Duration::from_millis(10));
-    }
-}
 
 /// Presses at `from`, moves right by `points` in two steps, releases.
 fn drag_right(h: &mut Harness<'_, TremorApp>, from: egui::Pos2, points: f32) {

@@ -13,7 +13,33 @@ use tremorscan::decode::UnwrapMethod;
 #[serde(rename_all = "snake_case", tag = "kind")]
 pub enum DeviceChoice {
     VirtualRig,
-    Replay { session: PathBuf },
+    Replay {
+        session: PathBuf,
+    },
+    /// A GenICam camera (feature `genicam`) with a second screen as the projector, synced in
+    /// software. Needs the rig's calibration files.
+    Camera {
+        /// Aravis device id; empty: the first camera found.
+        camera_id: String,
+        exposure_micros: f64,
+        /// Monitor of the projector screen, in the system's order (0 is usually the main one).
+        monitor: usize,
+        /// Screen refreshes each pattern stays.
+        hold_refreshes: u32,
+    },
+}
+
+impl DeviceChoice {
+    /// The camera device with its defaults: 5 ms exposure, the second monitor, 2 refreshes per
+    /// pattern (30 patterns/s on a 60 Hz screen).
+    pub fn default_camera() -> Self {
+        DeviceChoice::Camera {
+            camera_id: String::new(),
+            exposure_micros: 5000.0,
+            monitor: 1,
+            hold_refreshes: 2,
+        }
+    }
 }
 
 /// Unwrapping method, as stored.

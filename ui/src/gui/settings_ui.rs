@@ -5,81 +5,190 @@
 use super::app::TremorApp;
 use super::settings::{DeviceChoice, UnwrapChoice};
 
+/// The device radio buttons, and the camera's own settings when it is chosen.
+fn device_choice_ui(ui: &mut egui::Ui, device: &mut DeviceChoice, replay_path: &str) {
+    #[derive(PartialEq)]
+    enum Kind {
+        Rig,
+        Replay,
+        Camera,
+    }
+    let mut kind = match device {
+        DeviceChoice::VirtualRig => Kind::Rig,
+        DeviceChoice::Replay { .. } => Kind::Replay,
+        DeviceChoice::Camera { .. } => Kind::Camera,
+    };
+    ui.radio_value(
+        &mut kind,
+        Kind::Rig,
+        "virtual rig (simulated projector, camera and hand)",
+    );
+    ui.radio_value(&mut kind, Kind::Replay, "replay of a saved session");
+    ui.radio_value(
+        &mut kind,
+        Kind::Camera,
+        "GenICam camera with a second screen as projector",
+    );
+    match (kind, &*device) {
+        (Kind::Rig, DeviceChoice::VirtualRig)
+        | (Kind::Replay, DeviceChoice::Replay { .. })
+        | (Kind::Camera, DeviceChoice::Camera { .. }) => {}
+        (Kind::Rig, _) => *device = DeviceChoice::VirtualRig,
+        (Kind::Replay, _) => {
+            *device = DeviceChoice::Replay {
+                session: replay_path.trim().into(),
+            }
+        }
+        (Kind::Camera, _) => *device = DeviceChoice::default_camera(),
+    }
+    if let DeviceChoice::Camera {
+        camera_id,
+        exposure_micros,
+        monitor,
+        hold_refreshes,
+    } = device
+    {
+        if !cfg!(feature = "genicam") {
+            ui.colored_label(
+                egui::Color32::from_rgb(255, 90, 90),
+                "this build has no camera support (build with --features genicam; the .deb has it)",
+            );
+        }
+        egui::Grid::new("camera_grid")
+            .num_columns(2)
+            .show(ui, |ui| {
+                let l = ui.label("Camera id");
+                ui.add(egui::TextEdit::singleline(camera_id).hint_text("first camera found"))
+                    .labelled_by(l.id);
+                ui.end_row();
+                let l = ui.label("Exposure");
+                ui.add(
+                    egui::DragValue::new(exposure_micros)
+                        .range(50.0..=100_000.0)
+                        .suffix(" µs"),
+                )
+                .labelled_by(l.id);
+                ui.end_row();
+                let l = ui.label("Projector monitor");
+                ui.add(egui::DragValue::new(monitor).range(0..=8))
+                    .labelled_by(l.id)
+                    .on_hover_text(
+                        "the screen's number in the system's order; 0 is usually the main one",
+                    );
+                ui.end_row();
+                let l = ui.label("Refreshes per pattern");
+                ui.add(egui::DragValue::new(hold_refreshes).range(1..=8))
+                    .labelled_by(l.id)
+                    .on_hover_text("longer holds keep more frames certain at a lower pattern rate");
+                ui.end_row();
+            });
+        ui.label("The camera needs the rig's geometric and colour calibration files (below).");
+    }
+}
+
 pub fn settings_window_ui(ctx: &egui::Context, app: &mut TremorApp) {
     if !app.show_settings {
         return;
     }
     let mut open = true;
     let mut apply = false;
-    egui::Window::new("Settings").open(&mut open).show(ctx, |ui| {
-        let d = &mut app.settings_draft;
-        egui::Grid::new("settings_grid").num_columns(2).show(ui, |ui| {
-            ui.label("Device");
-            ui.vertical(|ui| {
-                let mut virtual_rig = d.device == DeviceChoice::VirtualRig;
-                ui.radio_value(&mut virtual_rig, true, "virtual rig (simulated projector, camera and hand)");
-                ui.radio_value(&mut virtual_rig, false, "replay of a saved session");
-                if virtual_rig {
-                    d.device = DeviceChoice::VirtualRig;
-                } else if d.device == DeviceChoice::VirtualRig {
-                    d.device = DeviceChoice::Replay {
-                        session: app.replay_path.trim().into(),
-                    };
-                }
-                ui.label("Real devices (GenICam camera, LightCrafter 4500, second screen) appear here when the app is built with their features.");
-            });
-            ui.end_row();
-            let l = ui.label("Virtual camera");
-            ui.horizontal(|ui| {
-                ui.add(egui::DragValue::new(&mut d.rig_width).range(64..=1920).suffix(" px"))
-                    .labelled_by(l.id);
-                ui.label("×");
-                ui.add(egui::DragValue::new(&mut d.rig_height).range(40..=1200).suffix(" px"))
-                    .labelled_by(l.id);
-            });
-            ui.end_row();
-            let l = ui.label("Fringes n");
-            ui.add(egui::DragValue::new(&mut d.fringe_count).range(3..=200))
-                .labelled_by(l.id)
-                .on_hover_text("the highest of the three frequencies n, n−1, n−2");
-            ui.end_row();
-            ui.label("Coded axis");
-            ui.horizontal(|ui| {
-                ui.radio_value(&mut d.code_columns, true, "columns");
-                ui.radio_value(&mut d.code_columns, false, "rows");
-            });
-            ui.end_row();
-            let l = ui.label("Projector bits");
-            ui.add(egui::DragValue::new(&mut d.projector_bits).range(1..=8))
-                .labelled_by(l.id);
-            ui.end_row();
-            ui.label("Unwrapping");
-            ui.horizontal(|ui| {
-                ui.radio_value(&mut d.unwrap, UnwrapChoice::Robust, "robust (neighbourhood)");
-                ui.radio_value(&mut d.unwrap, UnwrapChoice::PerPixel, "per pixel (paper)");
-            });
-            ui.end_row();
-            ui.label("Colour calibration");
-            ui.horizontal(|ui| {
-                ui.label(d.colour_file.as_ref().map_or("the rig's own".to_string(), |p| p.display().to_string()));
-                if d.colour_file.is_some() && ui.small_button("clear").clicked() {
-                    d.colour_file = None;
-                }
-            });
-            ui.end_row();
-            ui.label("Geometric calibration");
-            ui.horizontal(|ui| {
-                ui.label(d.calibration_file.as_ref().map_or("the rig's own".to_string(), |p| p.display().to_string()));
-                if d.calibration_file.is_some() && ui.small_button("clear").clicked() {
-                    d.calibration_file = None;
-                }
-            });
-            ui.end_row();
+    egui::Window::new("Settings")
+        .open(&mut open)
+        .show(ctx, |ui| {
+            let d = &mut app.settings_draft;
+            egui::Grid::new("settings_grid")
+                .num_columns(2)
+                .show(ui, |ui| {
+                    ui.label("Device");
+                    ui.vertical(|ui| device_choice_ui(ui, &mut d.device, &app.replay_path));
+                    ui.end_row();
+                    let l = ui.label("Virtual camera");
+                    ui.horizontal(|ui| {
+                        ui.add(
+                            egui::DragValue::new(&mut d.rig_width)
+                                .range(64..=1920)
+                                .suffix(" px"),
+                        )
+                        .labelled_by(l.id);
+                        ui.label("×");
+                        ui.add(
+                            egui::DragValue::new(&mut d.rig_height)
+                                .range(40..=1200)
+                                .suffix(" px"),
+                        )
+                        .labelled_by(l.id);
+                    });
+                    ui.end_row();
+                    let l = ui.label("Fringes n");
+                    ui.add(egui::DragValue::new(&mut d.fringe_count).range(3..=200))
+                        .labelled_by(l.id)
+                        .on_hover_text("the highest of the three frequencies n, n−1, n−2");
+                    ui.end_row();
+                    ui.label("Coded axis");
+                    ui.horizontal(|ui| {
+                        ui.radio_value(&mut d.code_columns, true, "columns");
+                        ui.radio_value(&mut d.code_columns, false, "rows");
+                    });
+                    ui.end_row();
+                    let l = ui.label("Projector bits");
+                    ui.add(egui::DragValue::new(&mut d.projector_bits).range(1..=8))
+                        .labelled_by(l.id);
+                    ui.end_row();
+                    ui.label("Unwrapping");
+                    ui.horizontal(|ui| {
+                        ui.radio_value(
+                            &mut d.unwrap,
+                            UnwrapChoice::Robust,
+                            "robust (neighbourhood)",
+                        );
+                        ui.radio_value(&mut d.unwrap, UnwrapChoice::PerPixel, "per pixel (paper)");
+                    });
+                    ui.end_row();
+                    ui.label("Colour calibration");
+                    ui.horizontal(|ui| {
+                        ui.label(
+                            d.colour_file
+                                .as_ref()
+                                .map_or("the rig's own".to_string(), |p| p.display().to_string()),
+                        );
+                        if ui.small_button("choose…").clicked() {
+                            if let Some(p) = rfd::FileDialog::new()
+                                .add_filter("colour calibration", &["json"])
+                                .pick_file()
+                            {
+                                d.colour_file = Some(p);
+                            }
+                        }
+                        if d.colour_file.is_some() && ui.small_button("clear").clicked() {
+                            d.colour_file = None;
+                        }
+                    });
+                    ui.end_row();
+                    ui.label("Geometric calibration");
+                    ui.horizontal(|ui| {
+                        ui.label(
+                            d.calibration_file
+                                .as_ref()
+                                .map_or("the rig's own".to_string(), |p| p.display().to_string()),
+                        );
+                        if ui.small_button("choose…").clicked() {
+                            if let Some(p) = rfd::FileDialog::new()
+                                .add_filter("calibration", &["json"])
+                                .pick_file()
+                            {
+                                d.calibration_file = Some(p);
+                            }
+                        }
+                        if d.calibration_file.is_some() && ui.small_button("clear").clicked() {
+                            d.calibration_file = None;
+                        }
+                    });
+                    ui.end_row();
+                });
+            if ui.button("Apply").clicked() {
+                apply = true;
+            }
         });
-        if ui.button("Apply").clicked() {
-            apply = true;
-        }
-    });
     if apply {
         app.settings = app.settings_draft.clone();
         app.show_settings = false;

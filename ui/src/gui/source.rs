@@ -66,6 +66,16 @@ pub fn virtual_rig(settings: &Settings) -> Result<VirtualRig> {
     VirtualRig::new(config, sequence).context("virtual rig")
 }
 
+/// The pipeline of a real camera: real time (the newest frame wins, drops are counted), with the
+/// tracker's queue.
+pub fn live_pipeline_config() -> PipelineConfig {
+    PipelineConfig {
+        decode_policy: DecodePolicy::RealTime,
+        consumer_queue: TRACKER_QUEUE,
+        ..PipelineConfig::default()
+    }
+}
+
 impl Source {
     /// Starts the device of `settings` with its tracker, keeping the points of `tracker`.
     pub fn start(settings: &Settings, tracker: LiveTracker) -> Result<Self> {
@@ -130,7 +140,31 @@ impl Source {
                         .context("starting the replay")?;
                 (pipeline, None, Some(control), Some(kept), fps)
             }
+            DeviceChoice::Camera { .. } => {
+                anyhow::bail!(
+                    "a camera starts through the live rig (it syncs with the screen first)"
+                )
+            }
         };
+        Self::with_pipeline(
+            pipeline,
+            recording_manifest,
+            playback,
+            session,
+            nominal_fps,
+            tracker,
+        )
+    }
+
+    /// A running pipeline with its tracker thread.
+    pub fn with_pipeline(
+        pipeline: Pipeline,
+        recording_manifest: Option<Manifest>,
+        playback: Option<Arc<PlaybackControl>>,
+        session: Option<Session>,
+        nominal_fps: f64,
+        tracker: LiveTracker,
+    ) -> Result<Self> {
         let tracker = Arc::new(Mutex::new(tracker));
         let tracker_thread = match pipeline.consumer_queue() {
             Some(queue) => {

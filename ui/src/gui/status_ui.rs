@@ -61,6 +61,8 @@ pub struct Status<'a> {
     pub metrics: Option<&'a MetricsSnapshot>,
     pub tracker_dropped: u64,
     pub recording: Option<String>,
+    /// The second screen's sync, when it is the projector.
+    pub screen: Option<String>,
 }
 
 pub fn status_bar_ui(ui: &mut egui::Ui, status: &Status<'_>, messages: &mut Messages) {
@@ -92,6 +94,10 @@ pub fn status_bar_ui(ui: &mut egui::Ui, status: &Status<'_>, messages: &mut Mess
             }
         }
         ui.separator();
+        if let Some(screen) = &status.screen {
+            ui.label(screen);
+            ui.separator();
+        }
         match &status.recording {
             Some(r) => ui.colored_label(egui::Color32::RED, r),
             None => ui.label("not recording"),

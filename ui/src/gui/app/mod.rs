@@ -8,6 +8,7 @@ mod menus;
 use super::camera_view::CameraView;
 use super::cloud_view::CloudView;
 use super::exports::{self, ExportKind};
+use super::live_rig::{self, LiveRig};
 use super::plot_ui::{self, DisplacementPlot};
 use super::points::{self, PointColours, PointEdit};
 use super::settings::{self, DeviceChoice, Settings};
@@ -26,6 +27,8 @@ pub struct TremorApp {
     /// Where settings persist (None: not persisted, as in tests).
     settings_path: Option<PathBuf>,
     pub source: Option<Source>,
+    /// A real camera with the second screen, while it syncs and runs.
+    pub live_rig: Option<LiveRig>,
     /// The tracker while no source runs (keeps the points).
     spare_tracker: LiveTracker,
     pub colours: PointColours,
@@ -57,11 +60,12 @@ impl TremorApp {
             settings_draft: settings.clone(),
             replay_path: match &settings.device {
                 DeviceChoice::Replay { session } => session.display().to_string(),
-                DeviceChoice::VirtualRig => String::new(),
+                DeviceChoice::VirtualRig | DeviceChoice::Camera { .. } => String::new(),
             },
             settings,
             settings_path,
             source: None,
+            live_rig: None,
             spare_tracker: LiveTracker::new(HISTORY_S),
             colours: PointColours::default(),
             camera_view: CameraView::default(),
@@ -80,11 +84,18 @@ impl TremorApp {
 
     /// (Re)starts the device of the current settings, carrying the control points over.
     pub fn restart_source(&mut self) {
-        if let Some(old) = self.source.take() {
-            self.trial.stop(&old);
-            let (tracker, events) = old.stop();
-            self.spare_tracker = tracker;
-            self.handle_events(events);
+        self.stop_source();
+        if matches!(self.settings.device, DeviceChoice::Camera { .. }) {
+            match live_rig::begin_from_settings(&self.settings) {
+                Ok(rig) => {
+                    self.messages
+                        .info("camera open; measuring the screen's delay with a flash code");
+                    self.live_rig = Some(rig);
+                }
+                Err(e) => self.messages.error(format!("{e:#}")),
+            }
+            self.persist();
+            return;
         }
         let mut tracker = self.spare_tracker.clone();
         tracker.clear_history();
@@ -112,6 +123,52 @@ impl TremorApp {
             Err(e) => self.messages.error(format!("{e:#}")),
         }
         self.persist();
+    }
+
+    /// Stops the running source and live rig, keeping the control points.
+    fn stop_source(&mut self) {
+        if let Some(old) = self.source.take() {
+            self.trial.stop(&old);
+            let (tracker, events) = old.stop();
+            self.spare_tracker = tracker;
+            self.handle_events(events);
+        }
+        self.live_rig = None;
+    }
+
+    /// Starts a live rig on an already opened camera (tests inject a camera here).
+    pub fn start_live_rig(
+        &mut self,
+        camera: Box<dyn tremorscan::device::Camera>,
+        parts: live_rig::RigParts,
+        monitor: usize,
+        hold_refreshes: u32,
+    ) {
+        self.stop_source();
+        match LiveRig::begin(camera, parts, monitor, hold_refreshes) {
+            Ok(rig) => self.live_rig = Some(rig),
+            Err(e) => self.messages.error(format!("{e:#}")),
+        }
+    }
+
+    /// One pass of the live rig: its screen, and its source once synced.
+    fn drive_live_rig(&mut self, ctx: &egui::Context) {
+        let Some(rig) = &mut self.live_rig else {
+            return;
+        };
+        let mut tracker = self.spare_tracker.clone();
+        tracker.clear_history();
+        match rig.drive(ctx, tracker) {
+            Some(Ok(source)) => {
+                self.messages.info(rig.status_line());
+                self.source = Some(source);
+            }
+            Some(Err(e)) => {
+                self.messages.error(format!("{e:#}"));
+                self.live_rig = None;
+            }
+            None => {}
+        }
     }
 
     /// Writes the settings file, if this app persists settings.
@@ -207,6 +264,7 @@ impl TremorApp {
             None => Vec::new(),
         };
         self.handle_events(events);
+        self.drive_live_rig(&ctx);
         if let Some(source) = &self.source {
             let mut notes = Vec::new();
             self.trial.tick(source, &mut notes);
@@ -251,6 +309,7 @@ impl TremorApp {
                     .as_ref()
                     .map_or(0, |s| s.pipeline.consumer_dropped()),
                 recording,
+                screen: self.live_rig.as_ref().map(LiveRig::status_line),
             };
             status_ui::status_bar_ui(ui, &status, &mut self.messages);
         });

@@ -1,0 +1,58 @@
+//! Shared helpers of the UI (kittest) tests: a scratch folder, test settings, the app in a kittest harness
+//! on wgpu, and stepping until a condition holds.
+#![allow(
+    dead_code,
+    reason = "each test binary uses a different subset of the helpers"
+)]
+
+use egui_kittest::Harness;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use tremorscan_ui::gui::app::TremorApp;
+use tremorscan_ui::gui::cloud_view::install_renderer;
+use tremorscan_ui::gui::settings::Settings;
+
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("tremorscan-gui-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
+}
+
+pub fn settings(dir: &std::path::Path) -> Settings {
+    Settings {
+        sessions_dir: dir.join("sessions"),
+        export_dir: dir.join("exports"),
+        countdown_seconds: 0.0,
+        ..Settings::default()
+    }
+}
+
+pub fn harness(settings: Settings) -> Harness<'static, TremorApp> {
+    Harness::builder()
+        .with_size(egui::vec2(1400.0, 900.0))
+        .wgpu()
+        .build_eframe(move |cc| {
+            // Kittest's wgpu pass has no depth attachment, so the renderer gets none either.
+            let has_renderer = cc.wgpu_render_state.as_ref().is_some_and(|s| {
+                install_renderer(s, None);
+                true
+            });
+            TremorApp::new(settings, None, has_renderer)
+        })
+}
+
+/// Steps the app until `done` holds, failing after `timeout`.
+pub fn step_until(
+    h: &mut Harness<'_, TremorApp>,
+    timeout: Duration,
+    what: &str,
+    done: impl Fn(&TremorApp) -> bool,
+) {
+    let start = Instant::now();
+    while !done(h.state()) {
+        assert!(start.elapsed() < timeout, "timed out waiting for {what}");
+        h.run_steps(1);
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
