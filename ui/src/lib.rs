@@ -4,6 +4,7 @@
 
 pub mod calibrate_cmd;
 pub mod demo;
+pub mod devices_cmd;
 pub mod gui;
 pub mod pipeline_cmd;
 pub mod progress;

@@ -2,11 +2,12 @@
 //! the window ([`gui`]); its subcommands run the same work headless: `demo` streams the virtual
 //! rig through the sliding-window decoder, `sweep` tabulates unwrap robustness against camera noise, `snapshot`
 //! writes one decoded window as PNG images; `simulate-calibration`, `calibrate-color`,
-//! `calibrate-geometric` and `import-calibration` calibrate a rig from recorded sessions.
+//! `calibrate-geometric` and `import-calibration` calibrate a rig from recorded sessions;
+//! `devices` lists real cameras and projectors, `lightcrafter` programs a LightCrafter 4500.
 
 use tremorscan_ui::{
-    calibrate_cmd, demo, gui, pipeline_cmd, session_cmd, simulate_calibration, snapshot, sweep,
-    tremor_cmd,
+    calibrate_cmd, demo, devices_cmd, gui, pipeline_cmd, session_cmd, simulate_calibration,
+    snapshot, sweep, tremor_cmd,
 };
 
 use anyhow::Result;
@@ -55,6 +56,10 @@ enum Command {
     CalibrateGeometric(calibrate_cmd::CalibrateGeometricArgs),
     /// Convert an OpenCV FileStorage calibration (YAML or XML) into a tremorscan calibration file.
     ImportCalibration(calibrate_cmd::ImportCalibrationArgs),
+    /// List the cameras and projectors this build can drive.
+    Devices,
+    /// Program the CPS-RGB sequence into a DLP LightCrafter 4500 (or print its timing).
+    Lightcrafter(devices_cmd::LightcrafterArgs),
 }
 
 /// Runs the command; a failure prints one line, `error: ` and its causes, and exits with 1.
@@ -85,6 +90,8 @@ fn run() -> Result<()> {
         Some(Command::Replay(args)) => pipeline_cmd::run_replay(&args),
         Some(Command::SimulateCalibration(args)) => simulate_calibration::run(&args),
         Some(Command::CalibrateColor(args)) => calibrate_cmd::run_color(&args),
+        Some(Command::Devices) => devices_cmd::run_devices(),
+        Some(Command::Lightcrafter(args)) => devices_cmd::run_lightcrafter(&args),
         Some(Command::CalibrateGeometric(args)) => calibrate_cmd::run_geometric(&args),
         Some(Command::ImportCalibration(args)) => calibrate_cmd::run_import(&args),
     }
