@@ -1,6 +1,8 @@
 //! `tremorscan devices` and `tremorscan lightcrafter`: what the build can drive, the CPS timing
 //! plan, and clear errors where a feature or a device is missing.
 
+#![allow(clippy::unwrap_used, reason = "tests")]
+
 mod common;
 
 use common::tremorscan;
