@@ -98,5 +98,30 @@ fn bench_triangulate(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_decode, bench_triangulate, bench_rig);
+/// Bayer demosaicing of a 1920×1200 frame (the capture thread's cost with a Bayer camera).
+fn bench_demosaic(c: &mut Criterion) {
+    use tremorscan::device::bayer::{demosaic_bilinear, demosaic_reference, BayerPattern};
+    let mut group = c.benchmark_group("demosaic_1920x1200");
+    group
+        .sample_size(20)
+        .measurement_time(Duration::from_secs(6));
+    let (w, h) = (1920, 1200);
+    let raw: Vec<u8> = (0..w * h).map(|i| (i * 7 % 251) as u8).collect();
+    let mut rgb = Vec::new();
+    group.bench_function("fast", |b| {
+        b.iter(|| demosaic_bilinear(&raw, w, h, BayerPattern::Bg, &mut rgb).unwrap());
+    });
+    group.bench_function("reference", |b| {
+        b.iter(|| demosaic_reference(&raw, w, h, BayerPattern::Bg, &mut rgb).unwrap());
+    });
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    bench_decode,
+    bench_triangulate,
+    bench_rig,
+    bench_demosaic
+);
 criterion_main!(benches);

@@ -62,6 +62,11 @@ pub enum BayerError {
 
 /// Demosaics `raw` (one byte per pixel, rows of `width`) into interleaved RGB `rgb`, which is
 /// resized to `width × height × 3` (no allocation once it has that size).
+///
+/// Interior pixels take fixed formulas by their place in the 2×2 cell (R and B sites: green from
+/// the 4 crosses, the other colour from the 4 diagonals; G sites: each other colour from its 2
+/// neighbours in the row or column); the one-pixel border takes the general mirrored rule. Both
+/// give the same numbers (a test compares them on random mosaics).
 pub fn demosaic_bilinear(
     raw: &[u8],
     width: usize,
@@ -69,6 +74,48 @@ pub fn demosaic_bilinear(
     pattern: BayerPattern,
     rgb: &mut Vec<u8>,
 ) -> Result<(), BayerError> {
+    check(raw, width, height)?;
+    rgb.resize(width * height * 3, 0);
+    let mean2 = |a: u8, b: u8| ((u16::from(a) + u16::from(b) + 1) / 2) as u8;
+    let mean4 = |a: u8, b: u8, c: u8, d: u8| {
+        ((u16::from(a) + u16::from(b) + u16::from(c) + u16::from(d) + 2) / 4) as u8
+    };
+    for y in 1..height.saturating_sub(1) {
+        let up = &raw[(y - 1) * width..y * width];
+        let row = &raw[y * width..(y + 1) * width];
+        let down = &raw[(y + 1) * width..(y + 2) * width];
+        let out = &mut rgb[y * width * 3..(y + 1) * width * 3];
+        for x in 1..width - 1 {
+            let own = pattern.channel_at(x, y);
+            let crosses = mean4(up[x], down[x], row[x - 1], row[x + 1]);
+            let px = &mut out[x * 3..x * 3 + 3];
+            px[own] = row[x];
+            if own == 1 {
+                // A green site: the row's neighbours are the colour of its row's other sites.
+                let row_colour = pattern.channel_at(x + 1, y);
+                px[row_colour] = mean2(row[x - 1], row[x + 1]);
+                px[2 - row_colour] = mean2(up[x], down[x]);
+            } else {
+                px[1] = crosses;
+                px[2 - own] = mean4(up[x - 1], up[x + 1], down[x - 1], down[x + 1]);
+            }
+        }
+    }
+    // The border: first and last rows and columns.
+    for y in 0..height {
+        let xs: Box<dyn Iterator<Item = usize>> = if y == 0 || y + 1 == height {
+            Box::new(0..width)
+        } else {
+            Box::new([0, width - 1].into_iter())
+        };
+        for x in xs {
+            demosaic_pixel(raw, width, height, pattern, x, y, rgb);
+        }
+    }
+    Ok(())
+}
+
+fn check(raw: &[u8], width: usize, height: usize) -> Result<(), BayerError> {
     if raw.len() != width * height {
         return Err(BayerError::WrongLength {
             width,
@@ -80,47 +127,69 @@ pub fn demosaic_bilinear(
     if width < 2 || height < 2 {
         return Err(BayerError::TooSmall { width, height });
     }
-    rgb.resize(width * height * 3, 0);
-    // Mirrored neighbour index: -1 → 1, n → n − 2 (keeps the mosaic's parity).
+    Ok(())
+}
+
+/// The general rule at one pixel: each missing colour is the mean of the 3×3 neighbours that
+/// sampled it, with the image mirrored at its edges (−1 → 1, n → n − 2, which keeps the
+/// mosaic's parity).
+fn demosaic_pixel(
+    raw: &[u8],
+    width: usize,
+    height: usize,
+    pattern: BayerPattern,
+    x: usize,
+    y: usize,
+    rgb: &mut [u8],
+) {
     let mirror = |i: isize, n: usize| -> usize {
         if i < 0 {
-            (-i) as usize
+            i.unsigned_abs()
         } else if i as usize >= n {
             2 * n - 2 - i as usize
         } else {
             i as usize
         }
     };
-    for y in 0..height {
-        for x in 0..width {
-            let own = pattern.channel_at(x, y);
-            let out = &mut rgb[(y * width + x) * 3..(y * width + x) * 3 + 3];
-            out[own] = raw[y * width + x];
-            for (channel, value) in out.iter_mut().enumerate() {
-                if channel == own {
+    let own = pattern.channel_at(x, y);
+    let out = &mut rgb[(y * width + x) * 3..(y * width + x) * 3 + 3];
+    out[own] = raw[y * width + x];
+    for (channel, value) in out.iter_mut().enumerate() {
+        if channel == own {
+            continue;
+        }
+        let mut sum = 0u32;
+        let mut count = 0u32;
+        for dy in -1isize..=1 {
+            for dx in -1isize..=1 {
+                if dx == 0 && dy == 0 {
                     continue;
                 }
-                // Mean of the 3×3 neighbours that sampled `channel`: 2 (a row or column pair)
-                // or 4 (the crosses or the diagonals), by the mosaic's geometry.
-                let mut sum = 0u32;
-                let mut count = 0u32;
-                for dy in -1isize..=1 {
-                    for dx in -1isize..=1 {
-                        if dx == 0 && dy == 0 {
-                            continue;
-                        }
-                        let sx = mirror(x as isize + dx, width);
-                        let sy = mirror(y as isize + dy, height);
-                        // Parity decides the colour, and mirroring keeps parity, so the
-                        // neighbour's colour is that of the unmirrored position.
-                        if pattern.channel_at(sx, sy) == channel {
-                            sum += u32::from(raw[sy * width + sx]);
-                            count += 1;
-                        }
-                    }
+                let sx = mirror(x as isize + dx, width);
+                let sy = mirror(y as isize + dy, height);
+                if pattern.channel_at(sx, sy) == channel {
+                    sum += u32::from(raw[sy * width + sx]);
+                    count += 1;
                 }
-                *value = ((sum + count / 2) / count.max(1)) as u8;
             }
+        }
+        *value = ((sum + count / 2) / count.max(1)) as u8;
+    }
+}
+
+/// The general rule at every pixel (the reference the fast path is tested against).
+pub fn demosaic_reference(
+    raw: &[u8],
+    width: usize,
+    height: usize,
+    pattern: BayerPattern,
+    rgb: &mut Vec<u8>,
+) -> Result<(), BayerError> {
+    check(raw, width, height)?;
+    rgb.resize(width * height * 3, 0);
+    for y in 0..height {
+        for x in 0..width {
+            demosaic_pixel(raw, width, height, pattern, x, y, rgb);
         }
     }
     Ok(())
@@ -183,6 +252,30 @@ mod tests {
                         assert_eq!(rgb[(y * w + x) * 3 + c], plane(x, y, c), "({x},{y}) c{c}");
                     }
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn the_fast_path_equals_the_general_rule_on_random_mosaics() {
+        let mut state = 12345u32;
+        for (w, h) in [(2, 2), (3, 5), (17, 11), (64, 48)] {
+            let raw: Vec<u8> = (0..w * h)
+                .map(|_| {
+                    state = state.wrapping_mul(1664525).wrapping_add(1013904223);
+                    (state >> 24) as u8
+                })
+                .collect();
+            for pattern in [
+                BayerPattern::Rg,
+                BayerPattern::Gr,
+                BayerPattern::Gb,
+                BayerPattern::Bg,
+            ] {
+                let (mut fast, mut reference) = (Vec::new(), Vec::new());
+                demosaic_bilinear(&raw, w, h, pattern, &mut fast).unwrap();
+                demosaic_reference(&raw, w, h, pattern, &mut reference).unwrap();
+                assert_eq!(fast, reference, "{w}×{h} {pattern:?}");
             }
         }
     }
