@@ -76,7 +76,7 @@ pub fn demosaic_bilinear(
 ) -> Result<(), BayerError> {
     check(raw, width, height)?;
     rgb.resize(width * height * 3, 0);
-    let mean2 = |a: u8, b: u8| ((u16::from(a) + u16::from(b) + 1) / 2) as u8;
+    let mean2 = |a: u8, b: u8| (u16::from(a) + u16::from(b)).div_ceil(2) as u8;
     let mean4 = |a: u8, b: u8, c: u8, d: u8| {
         ((u16::from(a) + u16::from(b) + u16::from(c) + u16::from(d) + 2) / 4) as u8
     };
