@@ -252,3 +252,36 @@ fn pulling_the_camera_out_ends_a_recording_that_keeps_its_frames() {
     assert_eq!((last.width, last.height), (320, 200));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Share of GigE Vision data packets the fake camera drops: a 256×160 RGB8 frame spans about 85
+/// packets, so none arrives whole (aravis's resend requests meet the same loss).
+const LOST: f64 = 0.5;
+
+#[test]
+fn a_link_that_loses_the_packets_is_reported_as_too_slow() {
+    let fake = FakeCamera::start("TSL1");
+    let settings = GenicamSettings {
+        frame_rate_hz: Some(50.0),
+        region: Some([0, 0, 256, 160]),
+        ..GenicamSettings::default()
+    };
+    let mut camera = GenicamCamera::open(&fake.id, &settings).unwrap();
+    let mut frame = Frame::empty();
+    grab_ok(&mut camera, &mut frame);
+    // Half the packets lost from now on: frames arrive, never whole.
+    fake.fake.as_ref().unwrap().set_gvsp_lost_ratio(LOST);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        match camera.grab(&mut frame) {
+            Err(DeviceError::Link(why)) => {
+                assert!(why.contains("incomplete"), "{why}");
+                break;
+            }
+            Ok(_) | Err(DeviceError::Idle) => {
+                assert!(Instant::now() < deadline, "no link error after 30 s");
+            }
+            Err(e) => panic!("wrong error: {e}"),
+        }
+    }
+    assert!(camera.incomplete_buffers() >= 30);
+}

@@ -15,6 +15,9 @@
 //!   USB3 Vision) sets a flag; a grab that finds it, or that waits [`STALL_TIMEOUT`] with no
 //!   frame in free run and then fails to read the camera, reports [`DeviceError::Disconnected`].
 //!   The pipeline then ends the stream, and a recording keeps every frame it already has.
+//! * A link too slow for the stream (USB3 Vision states its bandwidth and is checked on opening;
+//!   GigE Vision shows it as buffers with missing packets): [`INCOMPLETE_LIMIT`] incomplete
+//!   frames in a row end the stream with [`DeviceError::Link`] saying what to change.
 //!
 //! Aravis's global state is initialised once per process ([`aravis::Aravis::initialize`]); this
 //! module keeps that token behind a mutex so tests and threads can share it.
@@ -31,6 +34,9 @@ use std::time::{Duration, Instant};
 
 /// How long a free-running camera may deliver nothing before the grab checks that it is there.
 pub const STALL_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// Incomplete frames in a row that mean the link cannot carry the stream.
+const INCOMPLETE_LIMIT: u32 = 30;
 
 /// How long one grab waits for a buffer before it returns [`DeviceError::Idle`] (so the capture
 /// thread sees stop requests).
@@ -220,6 +226,8 @@ pub struct GenicamCamera {
     last_frame_at: Instant,
     /// Buffers given back incomplete (missing packets, timeouts), since opening.
     incomplete: u64,
+    /// Incomplete buffers in a row.
+    incomplete_streak: u32,
 }
 
 fn setting_error<'a>(
@@ -374,6 +382,7 @@ impl GenicamCamera {
             first_timestamp_ns: None,
             last_frame_at: Instant::now(),
             incomplete: 0,
+            incomplete_streak: 0,
         })
     }
 
@@ -530,10 +539,21 @@ impl Camera for GenicamCamera {
                 return Err(DeviceError::Idle);
             };
             if buffer.status() != BufferStatus::Success {
+                let status = buffer.status();
                 self.incomplete += 1;
+                self.incomplete_streak += 1;
                 self.stream.push_buffer(buffer);
+                if self.incomplete_streak >= INCOMPLETE_LIMIT {
+                    return Err(DeviceError::Link(format!(
+                        "camera '{}': {} frames in a row arrived incomplete ({status:?}); the link \
+                         cannot carry this stream: lower the frame rate or the region, use a \
+                         Bayer format, or (GigE Vision) enable jumbo frames",
+                        self.id, self.incomplete_streak
+                    )));
+                }
                 continue;
             }
+            self.incomplete_streak = 0;
             let filled = self.fill(&buffer, frame);
             let raw_id = buffer.frame_id();
             let timestamp_ns = match buffer.timestamp() {

@@ -31,6 +31,9 @@ pub enum DeviceError {
     /// A device could not be found, opened or configured.
     #[error("{0}")]
     Open(String),
+    /// The camera is there but its link cannot carry the stream.
+    #[error("{0}")]
+    Link(String),
     #[error("the camera is gone: {0}")]
     Disconnected(String),
     #[error("{0}")]
