@@ -85,6 +85,11 @@ impl PatternSchedule {
         self.entries.clear();
     }
 
+    /// What was shown, oldest first.
+    pub fn entries(&self) -> impl Iterator<Item = &Shown> {
+        self.entries.iter()
+    }
+
     /// The entries with their end times (the last one lasts until `f64::INFINITY`).
     fn spans(&self) -> impl Iterator<Item = (Shown, f64)> + '_ {
         self.entries.iter().enumerate().map(|(i, e)| {

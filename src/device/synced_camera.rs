@@ -15,7 +15,7 @@
 use super::screen_sync::{host_time_s, DelayEstimate, PatternSchedule, Seen};
 use super::{Camera, DeviceError, Grabbed};
 use crate::frame::Frame;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// How frames are labelled.
@@ -35,6 +35,8 @@ const UNLOCK_AFTER: u32 = 3;
 pub struct SyncStats {
     pub delivered: AtomicU64,
     pub uncertain: AtomicU64,
+    /// Triggered mode: whether the pattern phase is locked now.
+    pub locked: AtomicBool,
 }
 
 /// Labels a camera's frames with the screen's patterns; drops the uncertain ones.
@@ -166,7 +168,11 @@ impl<C: Camera> Camera for SyncedCamera<C> {
         loop {
             let grabbed = self.inner.grab(frame)?;
             let end_s = (self.clock)() - self.delay_s;
-            match self.label(grabbed.sequence_number, end_s) {
+            let label = self.label(grabbed.sequence_number, end_s);
+            self.stats
+                .locked
+                .store(self.offset.is_some(), Ordering::Relaxed);
+            match label {
                 Some(pattern) => {
                     frame.pattern_index = pattern;
                     self.stats.delivered.fetch_add(1, Ordering::Relaxed);

@@ -12,7 +12,7 @@ use std::time::Duration;
 use tremorscan::device::screen_sync::{host_time_s, PatternSchedule};
 use tremorscan::device::{Camera, DeviceError, Grabbed};
 use tremorscan::frame::Frame;
-use tremorscan_ui::gui::live_rig::RigParts;
+use tremorscan_ui::gui::live_rig::{RigParts, ScreenPlan};
 use tremorscan_ui::gui::projector_screen::ScreenMode;
 use tremorscan_ui::gui::source::virtual_rig;
 
@@ -81,7 +81,8 @@ fn start(sees: bool) -> egui_kittest::Harness<'static, tremorscan_ui::gui::app::
         k: 0,
     };
     let mut h = harness(s);
-    h.state_mut().start_live_rig(Box::new(camera), parts, 1, 1);
+    h.state_mut()
+        .start_live_rig(Box::new(camera), parts, ScreenPlan::second_screen(1, 1));
     let schedule = Arc::clone(
         &h.state()
             .live_rig
@@ -132,4 +133,109 @@ fn a_camera_that_does_not_see_the_screen_is_reported() {
     assert!(h.state().source.is_none());
     let (_, _, text) = h.state().messages.latest().expect("a message");
     assert!(text.contains("does not see the projector screen"), "{text}");
+}
+
+/// A camera triggered by a LightCrafter on the screen output: one frame per image the screen
+/// shows, exposed while it is lit (`LATENCY_S` after the hand-over).
+struct TriggeredWatcher {
+    size: (usize, usize),
+    schedule: Arc<Mutex<Option<Arc<Mutex<PatternSchedule>>>>>,
+    last_from: f64,
+    k: u64,
+}
+
+impl Camera for TriggeredWatcher {
+    fn name(&self) -> String {
+        "triggered watcher".into()
+    }
+    fn size(&self) -> (usize, usize) {
+        self.size
+    }
+    fn fps(&self) -> f64 {
+        120.0
+    }
+    fn grab(&mut self, frame: &mut Frame) -> Result<Grabbed, DeviceError> {
+        // Wait for the next image the screen hands over (a trigger).
+        let shown = loop {
+            let next = self.schedule.lock().expect("lock").as_ref().and_then(|s| {
+                s.lock()
+                    .expect("lock")
+                    .entries()
+                    .find(|e| e.from_s > self.last_from)
+                    .copied()
+            });
+            match next {
+                Some(e) => break e,
+                None => std::thread::sleep(Duration::from_millis(1)),
+            }
+        };
+        self.last_from = shown.from_s;
+        let ready = shown.from_s + LATENCY_S + EXPOSURE_S;
+        let wait = ready - host_time_s();
+        if wait > 0.0 {
+            std::thread::sleep(Duration::from_secs_f64(wait));
+        }
+        *frame = Frame::new(self.size.0, self.size.1, 3).expect("frame");
+        frame.data.fill((shown.level * 200.0 + 20.0) as u8);
+        self.k += 1;
+        Ok(Grabbed {
+            sequence_number: self.k - 1,
+        })
+    }
+}
+
+#[test]
+fn a_lightcrafter_triggered_camera_locks_the_pattern_phase() {
+    let dir = scratch("screen-triggered");
+    let mut s = settings(&dir);
+    s.rig_width = 160;
+    s.rig_height = 100;
+    let rig = virtual_rig(&s).expect("rig");
+    let parts = RigParts {
+        sequence: rig.sequence.clone(),
+        cross_talk: rig.config.cross_talk,
+        stereo: rig.stereo_model(),
+        manifest: rig.session_manifest(),
+        projector_size: (rig.config.projector.width, rig.config.projector.height),
+        exposure_s: EXPOSURE_S,
+    };
+    let slot = Arc::new(Mutex::new(None));
+    let camera = TriggeredWatcher {
+        size: (160, 100),
+        schedule: Arc::clone(&slot),
+        last_from: f64::NEG_INFINITY,
+        k: 0,
+    };
+    let mut h = harness(s);
+    h.state_mut()
+        .start_live_rig(Box::new(camera), parts, ScreenPlan::lightcrafter(1, 6));
+    let schedule = Arc::clone(
+        &h.state()
+            .live_rig
+            .as_ref()
+            .expect("live rig")
+            .screen
+            .schedule,
+    );
+    *slot.lock().expect("lock") = Some(schedule);
+    step_until(&mut h, Duration::from_secs(60), "the sync", |app| {
+        app.source.is_some()
+    });
+    step_until(&mut h, Duration::from_secs(30), "triggered frames", |app| {
+        app.source
+            .as_ref()
+            .is_some_and(|s| s.pipeline.metrics().captured >= 30)
+    });
+    let line = h.state().live_rig.as_ref().expect("live rig").status_line();
+    eprintln!("status: {line}");
+    assert!(line.contains("phase locked"), "{line}");
+    // One frame per image and no straddling: only the frames before the lock (4) are dropped,
+    // plus any a slow test pass made ambiguous; a wrong lock would keep dropping.
+    let dropped: u64 = line
+        .split(" uncertain")
+        .next()
+        .and_then(|l| l.rsplit(' ').next())
+        .and_then(|v| v.parse().ok())
+        .expect("a dropped count in the status line");
+    assert!(dropped <= 10, "{line}");
 }

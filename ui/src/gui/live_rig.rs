@@ -12,7 +12,7 @@
 //! start with a message; the window keeps running without a device.
 
 use super::projector_screen::ProjectorScreen;
-use super::settings::{DeviceChoice, Settings};
+use super::settings::Settings;
 use super::source::{live_pipeline_config, sequence_of, Source};
 use anyhow::{anyhow, Context, Result};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -80,6 +80,39 @@ impl RigParts {
     }
 }
 
+/// How the screen runs and frames are labelled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScreenPlan {
+    pub monitor: usize,
+    pub hold_refreshes: u32,
+    pub sync: SyncMode,
+    /// Pack images for a LightCrafter's video input at this bit depth.
+    pub packed_bits: Option<u8>,
+}
+
+impl ScreenPlan {
+    /// A plain screen: a free-running camera, each pattern held `hold_refreshes`.
+    pub fn second_screen(monitor: usize, hold_refreshes: u32) -> Self {
+        Self {
+            monitor,
+            hold_refreshes,
+            sync: SyncMode::FreeRunning,
+            packed_bits: None,
+        }
+    }
+
+    /// A LightCrafter on the screen output: one packed image per refresh, the camera triggered
+    /// by the projector once per image.
+    pub fn lightcrafter(monitor: usize, bits: u8) -> Self {
+        Self {
+            monitor,
+            hold_refreshes: 1,
+            sync: SyncMode::Triggered { pattern_count: 3 },
+            packed_bits: Some(bits),
+        }
+    }
+}
+
 type SyncResult = std::result::Result<(Box<dyn Camera>, Vec<(f64, f64)>), String>;
 
 enum RigState {
@@ -90,7 +123,7 @@ enum RigState {
     Running {
         stats: Arc<SyncStats>,
         delay: DelayEstimate,
-        camera_fps: f64,
+        since: std::time::Instant,
     },
     Stopped,
 }
@@ -98,57 +131,19 @@ enum RigState {
 pub struct LiveRig {
     pub screen: ProjectorScreen,
     parts: Option<RigParts>,
+    sync: SyncMode,
     state: RigState,
 }
 
-/// Opens the camera of `choice`.
-#[cfg(feature = "genicam")]
-pub fn open_camera(choice: &DeviceChoice) -> Result<Box<dyn Camera>> {
-    use tremorscan::device::genicam::{list_cameras, GenicamCamera, GenicamSettings};
-    let DeviceChoice::Camera {
-        camera_id,
-        exposure_micros,
-        ..
-    } = choice
-    else {
-        return Err(anyhow!("not a camera device"));
-    };
-    let id = if camera_id.trim().is_empty() {
-        list_cameras()
-            .first()
-            .map(|c| c.id.clone())
-            .ok_or_else(|| anyhow!("no GenICam camera found: check its cable and power"))?
-    } else {
-        camera_id.trim().to_string()
-    };
-    let settings = GenicamSettings {
-        exposure_micros: Some(*exposure_micros),
-        ..GenicamSettings::default()
-    };
-    Ok(Box::new(GenicamCamera::open(&id, &settings)?))
-}
-
-/// Without the `genicam` feature there is no camera to open.
-#[cfg(not(feature = "genicam"))]
-pub fn open_camera(_choice: &DeviceChoice) -> Result<Box<dyn Camera>> {
-    Err(anyhow!(
-        "this build has no GenICam camera support: build with `--features genicam` (the .deb has it)"
-    ))
-}
-
 impl LiveRig {
-    /// Starts the sync of `camera` with a screen on `monitor` showing `parts.sequence`.
-    pub fn begin(
-        camera: Box<dyn Camera>,
-        parts: RigParts,
-        monitor: usize,
-        hold_refreshes: u32,
-    ) -> Result<Self> {
+    /// Starts the sync of `camera` with a screen showing `parts.sequence` as `plan` says.
+    pub fn begin(camera: Box<dyn Camera>, parts: RigParts, plan: ScreenPlan) -> Result<Self> {
         let screen = ProjectorScreen::new(
             &parts.sequence,
             parts.projector_size,
-            monitor,
-            hold_refreshes,
+            plan.monitor,
+            plan.hold_refreshes,
+            plan.packed_bits,
         )?;
         let flash_over = Arc::new(AtomicBool::new(false));
         let over = Arc::clone(&flash_over);
@@ -159,6 +154,7 @@ impl LiveRig {
         Ok(Self {
             screen,
             parts: Some(parts),
+            sync: plan.sync,
             state: RigState::Syncing {
                 flash_over,
                 thread: Some(thread),
@@ -211,7 +207,7 @@ impl LiveRig {
         let synced = SyncedCamera::new(
             camera,
             Arc::clone(&self.screen.schedule),
-            SyncMode::FreeRunning,
+            self.sync,
             delay,
             parts.exposure_s,
             GUARD_S,
@@ -229,7 +225,7 @@ impl LiveRig {
         self.state = RigState::Running {
             stats,
             delay,
-            camera_fps,
+            since: std::time::Instant::now(),
         };
         Source::with_pipeline(
             pipeline,
@@ -250,17 +246,25 @@ impl LiveRig {
             RigState::Running {
                 stats,
                 delay,
-                camera_fps,
+                since,
             } => {
+                // Measured rates since the patterns started, not the camera's nominal one.
                 let delivered = stats.delivered.load(Ordering::Relaxed);
                 let uncertain = stats.uncertain.load(Ordering::Relaxed);
-                let kept = delivered as f64 / (delivered + uncertain).max(1) as f64;
+                let elapsed_s = since.elapsed().as_secs_f64().max(1e-3);
+                let phase = match self.sync {
+                    SyncMode::FreeRunning => "",
+                    SyncMode::Triggered { .. } if stats.locked.load(Ordering::Relaxed) => {
+                        "phase locked, "
+                    }
+                    SyncMode::Triggered { .. } => "finding the phase, ",
+                };
                 format!(
-                    "second screen: delay {:.1} ± {:.1} ms, {:.1} of {:.1} FPS kept, {} uncertain frames dropped, patterns {:.1}/s",
+                    "second screen: {phase}delay {:.1} ± {:.1} ms, {:.1} of {:.1} FPS kept, {} uncertain frames dropped, patterns {:.1}/s",
                     delay.delay_s * 1e3,
                     delay.uncertainty_s * 1e3,
-                    kept * camera_fps,
-                    camera_fps,
+                    delivered as f64 / elapsed_s,
+                    (delivered + uncertain) as f64 / elapsed_s,
                     uncertain,
                     self.screen.pattern_rate_hz()
                 )
@@ -297,29 +301,4 @@ fn watch_flash(mut camera: Box<dyn Camera>, over: &AtomicBool) -> SyncResult {
         }
     }
     Ok((camera, samples))
-}
-
-/// Starts the rig of `settings` (a camera device).
-pub fn begin_from_settings(settings: &Settings) -> Result<LiveRig> {
-    let DeviceChoice::Camera {
-        exposure_micros,
-        monitor,
-        hold_refreshes,
-        ..
-    } = &settings.device
-    else {
-        return Err(anyhow!("the device is not a camera"));
-    };
-    let parts = RigParts::from_settings(settings, exposure_micros * 1e-6)?;
-    let camera = open_camera(&settings.device)?;
-    if camera.size() != (parts.stereo.camera.width, parts.stereo.camera.height) {
-        return Err(anyhow!(
-            "the camera delivers {}×{} but the calibration is for {}×{}",
-            camera.size().0,
-            camera.size().1,
-            parts.stereo.camera.width,
-            parts.stereo.camera.height
-        ));
-    }
-    LiveRig::begin(camera, parts, *monitor, *hold_refreshes)
 }

@@ -12,6 +12,7 @@ pub mod plot_ui;
 pub mod points;
 pub mod projector_screen;
 pub mod replay_ui;
+pub mod rig_devices;
 pub mod settings;
 pub mod settings_ui;
 pub mod source;

@@ -10,6 +10,7 @@
 //! Where the backend cannot open a second window (tests), egui embeds the viewport as a window.
 
 use std::sync::{Arc, Mutex, PoisonError};
+use tremorscan::device::lightcrafter::timing::pack_video_pixel;
 use tremorscan::device::screen_sync::{flash_code, host_time_s, PatternSchedule, Shown};
 use tremorscan::pattern::{render_pattern, PatternSequence};
 
@@ -52,22 +53,29 @@ enum ShownTexture {
 
 impl ProjectorScreen {
     /// A screen on `monitor` (winit's order) for `sequence` at `size` pixels, starting with the
-    /// flash code.
+    /// flash code. With `packed_bits` the images are packed for a LightCrafter's video input
+    /// (three channels of that many bits in the 24 bit planes, see `pack_video_pixel`).
     pub fn new(
         sequence: &PatternSequence,
         size: (usize, usize),
         monitor: usize,
         hold_refreshes: u32,
+        packed_bits: Option<u8>,
     ) -> anyhow::Result<Self> {
         let images = (0..sequence.entries.len())
             .map(|i| {
                 let p = render_pattern(sequence, i, size.0, size.1)?;
-                Ok(if p.channels == 3 {
-                    egui::ColorImage::from_rgb([p.width, p.height], &p.data)
+                let mut rgb: Vec<u8> = if p.channels == 3 {
+                    p.data
                 } else {
-                    let rgb: Vec<u8> = p.data.iter().flat_map(|&v| [v, v, v]).collect();
-                    egui::ColorImage::from_rgb([p.width, p.height], &rgb)
-                })
+                    p.data.iter().flat_map(|&v| [v, v, v]).collect()
+                };
+                if let Some(bits) = packed_bits {
+                    for px in rgb.chunks_exact_mut(3) {
+                        px.copy_from_slice(&pack_video_pixel([px[0], px[1], px[2]], bits));
+                    }
+                }
+                Ok(egui::ColorImage::from_rgb([p.width, p.height], &rgb))
             })
             .collect::<Result<Vec<_>, tremorscan::pattern::PatternError>>()?;
         Ok(Self {

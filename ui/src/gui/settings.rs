@@ -26,7 +26,23 @@ pub enum DeviceChoice {
         monitor: usize,
         /// Screen refreshes each pattern stays.
         hold_refreshes: u32,
+        /// What projects: a plain screen, or a LightCrafter 4500 fed by that screen output.
+        #[serde(default)]
+        projector: ProjectorKind,
     },
+}
+
+/// The projector of a camera rig.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ProjectorKind {
+    /// Any screen; the camera runs free and frames are labelled by time.
+    #[default]
+    SecondScreen,
+    /// A LightCrafter 4500 (feature `lightcrafter`) on that video output: programmed over USB for
+    /// CPS-RGB at 6 bits, it triggers the camera once per image (wire its trigger out 1 to the
+    /// camera's Line1); the screen output carries one packed image per refresh.
+    LightCrafter,
 }
 
 impl DeviceChoice {
@@ -38,6 +54,7 @@ impl DeviceChoice {
             exposure_micros: 5000.0,
             monitor: 1,
             hold_refreshes: 2,
+            projector: ProjectorKind::SecondScreen,
         }
     }
 }

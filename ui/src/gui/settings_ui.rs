@@ -3,7 +3,7 @@
 //! "Apply", which restarts the device; the control points are kept.
 
 use super::app::TremorApp;
-use super::settings::{DeviceChoice, UnwrapChoice};
+use super::settings::{DeviceChoice, ProjectorKind, UnwrapChoice};
 
 /// The device radio buttons, and the camera's own settings when it is chosen.
 fn device_choice_ui(ui: &mut egui::Ui, device: &mut DeviceChoice, replay_path: &str) {
@@ -46,6 +46,7 @@ fn device_choice_ui(ui: &mut egui::Ui, device: &mut DeviceChoice, replay_path: &
         exposure_micros,
         monitor,
         hold_refreshes,
+        projector,
     } = device
     {
         if !cfg!(feature = "genicam") {
@@ -57,6 +58,16 @@ fn device_choice_ui(ui: &mut egui::Ui, device: &mut DeviceChoice, replay_path: &
         egui::Grid::new("camera_grid")
             .num_columns(2)
             .show(ui, |ui| {
+                ui.label("Projector");
+                ui.horizontal(|ui| {
+                    ui.radio_value(projector, ProjectorKind::SecondScreen, "second screen");
+                    ui.radio_value(
+                        projector,
+                        ProjectorKind::LightCrafter,
+                        "LightCrafter 4500 on that output",
+                    );
+                });
+                ui.end_row();
                 let l = ui.label("Camera id");
                 ui.add(egui::TextEdit::singleline(camera_id).hint_text("first camera found"))
                     .labelled_by(l.id);

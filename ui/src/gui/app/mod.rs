@@ -86,7 +86,7 @@ impl TremorApp {
     pub fn restart_source(&mut self) {
         self.stop_source();
         if matches!(self.settings.device, DeviceChoice::Camera { .. }) {
-            match live_rig::begin_from_settings(&self.settings) {
+            match super::rig_devices::begin_from_settings(&self.settings) {
                 Ok(rig) => {
                     self.messages
                         .info("camera open; measuring the screen's delay with a flash code");
@@ -141,11 +141,10 @@ impl TremorApp {
         &mut self,
         camera: Box<dyn tremorscan::device::Camera>,
         parts: live_rig::RigParts,
-        monitor: usize,
-        hold_refreshes: u32,
+        plan: live_rig::ScreenPlan,
     ) {
         self.stop_source();
-        match LiveRig::begin(camera, parts, monitor, hold_refreshes) {
+        match LiveRig::begin(camera, parts, plan) {
             Ok(rig) => self.live_rig = Some(rig),
             Err(e) => self.messages.error(format!("{e:#}")),
         }
