@@ -6,11 +6,10 @@ mod kit;
 
 use egui_kittest::kittest::Queryable;
 use egui_kittest::Harness;
-use kit::{harness, scratch, settings, step_until};
+use kit::{harness, harness_persisting, scratch, settings, step_until};
 
 use std::time::{Duration, Instant};
 use tremorscan_ui::gui::app::TremorApp;
-use tremorscan_ui::gui::cloud_view::install_renderer;
 use tremorscan_ui::gui::settings::{Settings, UnwrapChoice};
 use tremorscan_ui::gui::trial_ui::TrialState;
 use tremorscan_ui::render::orbit::project;
@@ -498,16 +497,7 @@ fn applied_settings_persist_to_the_settings_file() {
     let dir = scratch("persist");
     let path = dir.join("config").join("settings.json");
     let s = settings(&dir);
-    let mut h = Harness::builder()
-        .with_size(egui::vec2(1400.0, 900.0))
-        .wgpu()
-        .build_eframe(move |cc| {
-            let has_renderer = cc.wgpu_render_state.as_ref().is_some_and(|s| {
-                install_renderer(s, None);
-                true
-            });
-            TremorApp::new(s, Some(path), has_renderer)
-        });
+    let mut h = harness_persisting(s, Some(path));
     h.get_by_label("Settings…").click();
     h.run_steps(2);
     h.get_by_label("per pixel (paper)").click();

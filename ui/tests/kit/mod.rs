@@ -29,6 +29,14 @@ pub fn settings(dir: &std::path::Path) -> Settings {
 }
 
 pub fn harness(settings: Settings) -> Harness<'static, TremorApp> {
+    harness_persisting(settings, None)
+}
+
+/// The app in a harness, persisting its settings to `settings_path` when given.
+pub fn harness_persisting(
+    settings: Settings,
+    settings_path: Option<PathBuf>,
+) -> Harness<'static, TremorApp> {
     Harness::builder()
         .with_size(egui::vec2(1400.0, 900.0))
         .wgpu()
@@ -38,7 +46,7 @@ pub fn harness(settings: Settings) -> Harness<'static, TremorApp> {
                 install_renderer(s, None);
                 true
             });
-            TremorApp::new(settings, None, has_renderer)
+            TremorApp::new(settings, settings_path, has_renderer)
         })
 }
 
