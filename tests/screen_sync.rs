@@ -213,7 +213,12 @@ fn kept_frames_carry_the_pattern_they_saw_and_straddling_ones_are_dropped() {
     let stats = synced.stats();
     let mut frame = Frame::empty();
     let mut kept = 0;
-    while let Ok(g) = synced.grab(&mut frame) {
+    loop {
+        let g = match synced.grab(&mut frame) {
+            Ok(g) => g,
+            Err(DeviceError::Idle) => continue,
+            Err(_) => break,
+        };
         let k = frame.time_s as u64;
         assert_eq!(
             truth.truly_saw(k),
@@ -343,7 +348,12 @@ fn a_triggered_camera_locks_its_phase_and_relocks_after_a_missed_refresh() {
     let stats = synced.stats();
     let mut frame = Frame::empty();
     let mut delivered = 0;
-    while synced.grab(&mut frame).is_ok() {
+    loop {
+        match synced.grab(&mut frame) {
+            Ok(_) => {}
+            Err(DeviceError::Idle) => continue,
+            Err(_) => break,
+        }
         let k = frame.time_s as usize;
         assert_eq!(frame.pattern_index, truth[k], "frame {k}");
         delivered += 1;
@@ -353,4 +363,43 @@ fn a_triggered_camera_locks_its_phase_and_relocks_after_a_missed_refresh() {
     let uncertain = stats.uncertain.load(std::sync::atomic::Ordering::Relaxed);
     assert_eq!(delivered + uncertain, 300);
     assert_eq!(uncertain, 4 + 3 + 4, "{uncertain}");
+}
+
+#[test]
+fn an_uncertain_frame_is_counted_and_the_grab_returns_so_a_stop_is_seen() {
+    // Nothing shown yet: every frame is uncertain. Each grab must come back (Idle) rather than
+    // wait for a certain frame, or a capture thread could never see a stop request.
+    let clock = Arc::new(Mutex::new(0.0));
+    let camera = SimCamera {
+        period_s: 0.01,
+        truth: Vec::new(),
+        k: 0,
+        frames: 1_000_000,
+        clock: Arc::clone(&clock),
+        sees_screen: true,
+        rng: Lcg(2),
+    };
+    let delay = DelayEstimate {
+        delay_s: 0.01,
+        uncertainty_s: 0.0,
+        correlation: 1.0,
+    };
+    let mut synced = SyncedCamera::new(
+        camera,
+        Arc::new(Mutex::new(PatternSchedule::default())),
+        SyncMode::FreeRunning,
+        delay,
+        EXPOSURE_S,
+        1e-3,
+    )
+    .with_clock(move || *clock.lock().unwrap());
+    let stats = synced.stats();
+    let mut frame = Frame::empty();
+    for expected in 1..=3 {
+        assert!(matches!(synced.grab(&mut frame), Err(DeviceError::Idle)));
+        assert_eq!(
+            stats.uncertain.load(std::sync::atomic::Ordering::Relaxed),
+            expected
+        );
+    }
 }

@@ -9,8 +9,9 @@
 //!   schedule places clearly inside a pattern, and after 3 disagreements in a row (the screen
 //!   missed a refresh and showed a pattern twice) drops frames until it locks again.
 //!
-//! Dropped frames are counted in [`SyncStats`]; delivered frames are renumbered around them, so
-//! gaps in the numbers still mean frames the camera itself lost.
+//! A dropped frame is counted in [`SyncStats`] and its grab returns [`DeviceError::Idle`] (no
+//! frame this time); delivered frames are renumbered around the dropped ones, so gaps in the
+//! numbers still mean frames the camera itself lost.
 
 use super::screen_sync::{host_time_s, DelayEstimate, PatternSchedule, Seen};
 use super::{Camera, DeviceError, Grabbed};
@@ -165,25 +166,26 @@ impl<C: Camera> Camera for SyncedCamera<C> {
     }
 
     fn grab(&mut self, frame: &mut Frame) -> Result<Grabbed, DeviceError> {
-        loop {
-            let grabbed = self.inner.grab(frame)?;
-            let end_s = (self.clock)() - self.delay_s;
-            let label = self.label(grabbed.sequence_number, end_s);
-            self.stats
-                .locked
-                .store(self.offset.is_some(), Ordering::Relaxed);
-            match label {
-                Some(pattern) => {
-                    frame.pattern_index = pattern;
-                    self.stats.delivered.fetch_add(1, Ordering::Relaxed);
-                    let uncertain = self.stats.uncertain.load(Ordering::Relaxed);
-                    return Ok(Grabbed {
-                        sequence_number: grabbed.sequence_number.saturating_sub(uncertain),
-                    });
-                }
-                None => {
-                    self.stats.uncertain.fetch_add(1, Ordering::Relaxed);
-                }
+        let grabbed = self.inner.grab(frame)?;
+        let end_s = (self.clock)() - self.delay_s;
+        let label = self.label(grabbed.sequence_number, end_s);
+        self.stats
+            .locked
+            .store(self.offset.is_some(), Ordering::Relaxed);
+        match label {
+            Some(pattern) => {
+                frame.pattern_index = pattern;
+                self.stats.delivered.fetch_add(1, Ordering::Relaxed);
+                let uncertain = self.stats.uncertain.load(Ordering::Relaxed);
+                Ok(Grabbed {
+                    sequence_number: grabbed.sequence_number.saturating_sub(uncertain),
+                })
+            }
+            None => {
+                // Dropped, and no frame this time: the capture thread asks again (and sees a
+                // stop request even when every frame is uncertain).
+                self.stats.uncertain.fetch_add(1, Ordering::Relaxed);
+                Err(DeviceError::Idle)
             }
         }
     }
