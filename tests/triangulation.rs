@@ -66,7 +66,7 @@ fn decoded_cloud_matches_the_true_surface() {
     let mut cloud = PointCloud::default();
     triangulator.triangulate(&decoded, &mut cloud).unwrap();
     assert_eq!(cloud.valid_count(), decoded.valid_count());
-    // The fast path (precomputed quadratic distortion offset, one plane solve) against the exact
+    // The fast path (per-pixel distortion polynomial, one f32 plane solve) against the exact
     // Newton solution, pixel by pixel.
     let mut worst_fast = 0f64;
     for (p, point) in cloud.point_in_camera_mm.iter().enumerate() {
@@ -112,4 +112,55 @@ fn a_map_of_the_wrong_size_is_refused() {
         .triangulate(&decoded, &mut PointCloud::default())
         .unwrap_err();
     assert!(err.to_string().contains("640×400"), "{err}");
+}
+
+#[test]
+fn fast_path_matches_the_exact_solution_on_every_axis() {
+    use tremorscan::decode::{DecodeOutput, WindowSolver};
+    for (axis, n, x_max) in [
+        (Axis::Columns, 65, 912.0),
+        (Axis::Rows, 81, 1140.0),
+        (Axis::Diagonal, 107, 1481.0),
+    ] {
+        let config = still_hand_rig(NoiseModel::none());
+        let seq = cps_rgb(n, x_max, axis, 6).unwrap();
+        let rig = VirtualRig::new(config, seq.clone()).unwrap();
+        let triangulator = Triangulator::new(rig.stereo_model()).unwrap();
+        let mut frame = rig.blank_frame();
+        let mut truth = GroundTruth::default();
+        rig.render(0, &mut frame, Some(&mut truth)).unwrap();
+        let solver = WindowSolver::new(&seq, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+        let mut decoded = DecodeOutput::new(frame.width, frame.height, &solver);
+        decoded.coordinate_px.clone_from(&truth.coordinate_px);
+        decoded.amplitude.fill(10.0);
+        let mut cloud = PointCloud::default();
+        triangulator.triangulate(&decoded, &mut cloud).unwrap();
+        let mut worst = 0f64;
+        for (p, &x) in truth.coordinate_px.iter().enumerate() {
+            let Some(exact) = triangulator.point(p, f64::from(x)) else {
+                continue;
+            };
+            let fast = cloud.point_in_camera_mm[p];
+            // The f32 plane solve and the degree-6 distortion fit both err like a coordinate
+            // error: allow the point error of 10⁻³ projector px (the GPU-equality budget of the
+            // decoder), i.e. 10⁻³ px times this pixel's depth sensitivity, at least 10⁻³ mm.
+            let z = |dx: f64| {
+                triangulator
+                    .point(p, f64::from(x) + dx)
+                    .map_or(f64::NAN, |q| q.z)
+            };
+            let sensitivity = ((z(0.01) - z(-0.01)) / 0.02).abs();
+            let err = (0..3)
+                .map(|i| (f64::from(fast[i]) - exact[i]).abs())
+                .fold(0.0, f64::max);
+            let allowed = 1e-3 * sensitivity.max(1.0);
+            assert!(
+                err <= allowed,
+                "{axis:?} pixel {p}: {err} mm (allowed {allowed})"
+            );
+            worst = worst.max(err / sensitivity.max(1.0));
+            assert_eq!(cloud.fringe_amplitude[p], 10.0);
+        }
+        eprintln!("{axis:?}: worst {worst:.2e} px equivalent");
+    }
 }

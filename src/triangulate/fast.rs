@@ -1,0 +1,286 @@
+//! The per-pixel tables of the fast triangulation path, and its row kernel.
+//!
+//! For coded coordinate `x`, the plane normal (projector frame) is affine in `x`:
+//! `a(x) = n0 + x·n1` (columns: `n0 = (fx, 0, cx)`, `n1 = (0, 0, −1)`; rows and the diagonal
+//! alike). A camera ray `d` (scaled to `d_z = 1`, so the scale is the depth) meets it at
+//!
+//! ```text
+//! depth = −(a·t) / (a·(R·d)) = (num0 + num1·x) / (den0 + den1·x)
+//! num_i = −n_i·t (global),   den_i = n_i·(R·d) (per pixel)
+//! ```
+//!
+//! Projector distortion moves the coordinate a real projector shows along the ray by a smooth
+//! offset. [`DistortionFit`] interpolates that offset as a polynomial of degree
+//! [`FIT_DEGREE`] in the shown coordinate, through samples at Chebyshev nodes of inverse depth
+//! over [`FIT_DEPTH_RANGE_MM`] (the shown coordinate is nearly linear in inverse depth).
+//! The per-pixel work is then a Horner polynomial, one division and three products in `f32`, in
+//! a loop over structure-of-array rows that vectorises.
+
+use crate::geometry::LensModel;
+use crate::pattern::Axis;
+use nalgebra::Vector3;
+
+use super::StereoModel;
+
+/// Degree of the per-pixel distortion polynomial.
+pub const FIT_DEGREE: usize = 6;
+/// Depth range over which the distortion polynomial interpolates, mm along the optical axis:
+/// the rig's working volume with a margin. Outside it the polynomial extrapolates.
+pub const FIT_DEPTH_RANGE_MM: (f64, f64) = (200.0, 1000.0);
+
+const TERMS: usize = FIT_DEGREE + 1;
+
+/// The plane normal of coded coordinate `x` is `n0 + x·n1`.
+pub(super) fn plane_basis(axis: Axis, projector: &LensModel) -> (Vector3<f64>, Vector3<f64>) {
+    let k = &projector.intrinsics;
+    match axis {
+        Axis::Columns => (Vector3::new(k.fx, 0.0, k.cx), Vector3::new(0.0, 0.0, -1.0)),
+        Axis::Rows => (Vector3::new(0.0, k.fy, k.cy), Vector3::new(0.0, 0.0, -1.0)),
+        Axis::Diagonal => (
+            Vector3::new(k.fx, k.fy, k.cx + k.cy),
+            Vector3::new(0.0, 0.0, -std::f64::consts::SQRT_2),
+        ),
+    }
+}
+
+/// Per-pixel constants, one plane per quantity (structure of arrays).
+#[derive(Debug, Clone, Default)]
+pub(super) struct FastTable {
+    /// Ray direction over its depth: `point = (ray_x·z, ray_y·z, z)`.
+    pub ray_x: Vec<f32>,
+    pub ray_y: Vec<f32>,
+    pub den0: Vec<f32>,
+    pub den1: Vec<f32>,
+    /// Centre of the polynomial's coordinate range; NaN where the ray misses the projector.
+    pub x_mid: Vec<f32>,
+    /// Monomial coefficients of the offset in `x − x_mid`, lowest first.
+    pub coeff: [Vec<f32>; TERMS],
+    pub num0: f32,
+    pub num1: f32,
+}
+
+impl FastTable {
+    /// Builds the table from the unit rays `rays` of every camera pixel.
+    pub fn new(model: &StereoModel, rays: &[Vector3<f64>]) -> Self {
+        let (n0, n1) = plane_basis(model.axis, &model.projector);
+        let pose = &model.projector_from_camera;
+        let t = pose.translation_mm;
+        let n = rays.len();
+        let mut table = Self {
+            ray_x: Vec::with_capacity(n),
+            ray_y: Vec::with_capacity(n),
+            den0: Vec::with_capacity(n),
+            den1: Vec::with_capacity(n),
+            x_mid: Vec::with_capacity(n),
+            coeff: std::array::from_fn(|_| Vec::with_capacity(n)),
+            num0: -n0.dot(&t) as f32,
+            num1: -n1.dot(&t) as f32,
+        };
+        for d in rays {
+            let d = d / d.z;
+            let e = pose.rotation * d;
+            table.ray_x.push(d.x as f32);
+            table.ray_y.push(d.y as f32);
+            table.den0.push(n0.dot(&e) as f32);
+            table.den1.push(n1.dot(&e) as f32);
+            let fit = DistortionFit::along(model, &d);
+            table.x_mid.push(fit.x_mid as f32);
+            for (plane, c) in table.coeff.iter_mut().zip(fit.coeff) {
+                plane.push(c as f32);
+            }
+        }
+        table
+    }
+
+    /// Appends `other`'s pixels (built for the same model) after this table's.
+    pub fn append(&mut self, other: Self) {
+        self.ray_x.extend(other.ray_x);
+        self.ray_y.extend(other.ray_y);
+        self.den0.extend(other.den0);
+        self.den1.extend(other.den1);
+        self.x_mid.extend(other.x_mid);
+        for (plane, more) in self.coeff.iter_mut().zip(other.coeff) {
+            plane.extend(more);
+        }
+        self.num0 = other.num0;
+        self.num1 = other.num1;
+    }
+
+    pub fn memory_bytes(&self) -> usize {
+        let planes = 5 + TERMS;
+        planes * self.x_mid.capacity() * std::mem::size_of::<f32>()
+    }
+}
+
+/// The offset `shown − ideal` of the coded coordinate along one camera ray, as a polynomial.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct DistortionFit {
+    pub x_mid: f64,
+    pub coeff: [f64; TERMS],
+}
+
+impl DistortionFit {
+    /// Interpolates through the ray's points at Chebyshev nodes of inverse depth; `d` has
+    /// `d.z = 1`. NaN where a node misses the projector.
+    pub fn along(model: &StereoModel, d: &Vector3<f64>) -> Self {
+        let missing = Self {
+            x_mid: f64::NAN,
+            coeff: [f64::NAN; TERMS],
+        };
+        let k = &model.projector.intrinsics;
+        let (near, far) = FIT_DEPTH_RANGE_MM;
+        let (inv_a, inv_b) = (1.0 / far, 1.0 / near);
+        let mut xs = [0.0; TERMS];
+        let mut ys = [0.0; TERMS];
+        for j in 0..TERMS {
+            let node = ((2 * j + 1) as f64 * std::f64::consts::PI / (2 * TERMS) as f64).cos();
+            let depth = 1.0 / (0.5 * (inv_a + inv_b) + 0.5 * (inv_b - inv_a) * node);
+            let q = model.projector_from_camera.transform(&(d * depth));
+            if q.z <= 1e-9 {
+                return missing;
+            }
+            let Some((u, v)) = model.projector.project(&q) else {
+                return missing;
+            };
+            let shown = model.axis.coordinate(u, v);
+            let ideal = model
+                .axis
+                .coordinate(k.fx * q.x / q.z + k.cx, k.fy * q.y / q.z + k.cy);
+            xs[j] = shown;
+            ys[j] = shown - ideal;
+        }
+        let x_mid = 0.5
+            * (xs.iter().copied().fold(f64::INFINITY, f64::min)
+                + xs.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+        match interpolate(&xs.map(|x| x - x_mid), &ys) {
+            Some(coeff) => Self { x_mid, coeff },
+            None => missing,
+        }
+    }
+
+    #[cfg(test)]
+    pub fn offset(&self, x: f64) -> f64 {
+        let dx = x - self.x_mid;
+        self.coeff.iter().rev().fold(0.0, |acc, &c| acc * dx + c)
+    }
+}
+
+/// Monomial coefficients (lowest first) of the polynomial through `(xs, ys)`, by Newton's
+/// divided differences; `None` when two nodes coincide.
+fn interpolate(xs: &[f64; TERMS], ys: &[f64; TERMS]) -> Option<[f64; TERMS]> {
+    let mut dd = *ys;
+    for level in 1..TERMS {
+        for i in (level..TERMS).rev() {
+            let span = xs[i] - xs[i - level];
+            if span.abs() < 1e-9 {
+                return None;
+            }
+            dd[i] = (dd[i] - dd[i - 1]) / span;
+        }
+    }
+    // Horner on the Newton form: p = dd0 + (x − x0)(dd1 + (x − x1)(dd2 + …)).
+    let mut coeff = [0.0; TERMS];
+    for i in (0..TERMS).rev() {
+        // coeff ← coeff·(x − xs[i]) + dd[i]
+        let mut next = [0.0; TERMS];
+        for p in 0..TERMS {
+            if p + 1 < TERMS {
+                next[p + 1] += coeff[p];
+            }
+            next[p] -= coeff[p] * xs[i];
+        }
+        next[0] += dd[i];
+        coeff = next;
+    }
+    Some(coeff)
+}
+
+/// Output rows of [`triangulate_row`].
+pub(super) struct CloudRow<'a> {
+    pub points: &'a mut [[f32; 3]],
+    pub colours: &'a mut [[u8; 3]],
+    pub amplitudes: &'a mut [f32],
+}
+
+/// Input rows of [`triangulate_row`]: the decoded coordinate, per-frequency amplitude planes
+/// and colour planes of one image row.
+pub(super) struct DecodedRow<'a> {
+    pub coordinate: &'a [f32],
+    pub amplitude: &'a [f32],
+    pub frequencies: usize,
+    pub colour: &'a [f32],
+    pub channels: usize,
+}
+
+/// Triangulates one row starting at pixel `first`; `depth` is a row of scratch. Pixels whose
+/// distortion fit is missing are left NaN in `depth` and reported through `missing`.
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+pub(super) fn triangulate_row(
+    table: &FastTable,
+    first: usize,
+    input: &DecodedRow<'_>,
+    depth: &mut [f32],
+    out: CloudRow<'_>,
+) {
+    let w = input.coordinate.len();
+    let span = first..first + w;
+    let (rx, ry) = (&table.ray_x[span.clone()], &table.ray_y[span.clone()]);
+    let (d0, d1) = (&table.den0[span.clone()], &table.den1[span.clone()]);
+    let xm = &table.x_mid[span.clone()];
+    let c: [&[f32]; TERMS] = std::array::from_fn(|i| &table.coeff[i][span.clone()]);
+    let (num0, num1) = (table.num0, table.num1);
+    for x in 0..w {
+        let shown = input.coordinate[x];
+        let dx = shown - xm[x];
+        let mut offset = c[TERMS - 1][x];
+        for i in (0..TERMS - 1).rev() {
+            offset = offset * dx + c[i][x];
+        }
+        let ideal = shown - offset;
+        let z = (num0 + num1 * ideal) / (d0[x] + d1[x] * ideal);
+        // NaN (invalid coordinate, missing fit) and points behind the camera fail the test.
+        depth[x] = if z > 0.0 && z < f32::MAX { z } else { f32::NAN };
+    }
+    let nf = input.frequencies;
+    let nc = input.channels;
+    for x in 0..w {
+        let z = depth[x];
+        let valid = z.is_finite();
+        out.points[x] = if valid {
+            [rx[x] * z, ry[x] * z, z]
+        } else {
+            [f32::NAN; 3]
+        };
+        let mut amp = input.amplitude[x];
+        for f in 1..nf {
+            amp = amp.min(input.amplitude[f * w + x]);
+        }
+        out.amplitudes[x] = if valid { amp } else { 0.0 };
+        let gray = |ch: usize| input.colour[ch * w + x].clamp(0.0, 255.0) as u8;
+        out.colours[x] = if nc == 3 {
+            [gray(0), gray(1), gray(2)]
+        } else {
+            [gray(0); 3]
+        };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn interpolation_reproduces_a_polynomial_of_its_degree() {
+        let truth = |x: f64| 0.3 - 0.02 * x + 1e-4 * x * x - 3e-7 * x.powi(3) + 2e-10 * x.powi(4);
+        let xs: [f64; TERMS] =
+            std::array::from_fn(|i| -300.0 + 600.0 * i as f64 / FIT_DEGREE as f64 + (i * i) as f64);
+        let coeff = interpolate(&xs, &xs.map(truth)).unwrap();
+        let fit = DistortionFit { x_mid: 0.0, coeff };
+        for x in [-250.0, -10.0, 77.0, 260.0] {
+            assert!((fit.offset(x) - truth(x)).abs() < 1e-12, "{x}");
+        }
+        let mut repeated = xs;
+        repeated[2] = repeated[1];
+        assert!(interpolate(&repeated, &[0.0; TERMS]).is_none());
+    }
+}
