@@ -10,7 +10,9 @@
 //! * [`decode`]: window solve, robust unwrapping, combination, validity, sliding window.
 //! * [`triangulate`]: decoded coordinates to an organised, coloured point cloud.
 //! * [`rig`]: the virtual projector–camera rig with a trembling hand and exact ground truth.
+//! * [`bench`]: the per-stage throughput check behind `tremorscan bench`.
 
+pub mod bench;
 pub mod calibrate;
 pub mod color;
 pub mod decode;

@@ -2,6 +2,7 @@
 //! [`render`]) and the headless subcommands of the `tremorscan` binary, all over the core
 //! library `tremorscan`. A library so that the UI tests (`ui/tests`) can drive the app.
 
+pub mod bench_cmd;
 pub mod calibrate_cmd;
 pub mod demo;
 pub mod devices_cmd;

@@ -3,11 +3,12 @@
 //! rig through the sliding-window decoder, `sweep` tabulates unwrap robustness against camera noise, `snapshot`
 //! writes one decoded window as PNG images; `simulate-calibration`, `calibrate-color`,
 //! `calibrate-geometric` and `import-calibration` calibrate a rig from recorded sessions;
-//! `devices` lists real cameras and projectors, `lightcrafter` programs a LightCrafter 4500.
+//! `devices` lists real cameras and projectors, `lightcrafter` programs a LightCrafter 4500;
+//! `bench` tells whether this PC keeps up with the camera.
 
 use tremorscan_ui::{
-    calibrate_cmd, demo, devices_cmd, gui, pipeline_cmd, session_cmd, simulate_calibration,
-    snapshot, sweep, tremor_cmd,
+    bench_cmd, calibrate_cmd, demo, devices_cmd, gui, pipeline_cmd, session_cmd,
+    simulate_calibration, snapshot, sweep, tremor_cmd,
 };
 
 use anyhow::Result;
@@ -60,6 +61,8 @@ enum Command {
     Devices,
     /// Program the CPS-RGB sequence into a DLP LightCrafter 4500 (or print its timing).
     Lightcrafter(devices_cmd::LightcrafterArgs),
+    /// Measure per-stage decode times at the camera's size: does this PC keep up?
+    Bench(bench_cmd::BenchArgs),
 }
 
 /// Runs the command; a failure prints one line, `error: ` and its causes, and exits with 1.
@@ -92,6 +95,7 @@ fn run() -> Result<()> {
         Some(Command::CalibrateColor(args)) => calibrate_cmd::run_color(&args),
         Some(Command::Devices) => devices_cmd::run_devices(),
         Some(Command::Lightcrafter(args)) => devices_cmd::run_lightcrafter(&args),
+        Some(Command::Bench(args)) => bench_cmd::run_bench(&args),
         Some(Command::CalibrateGeometric(args)) => calibrate_cmd::run_geometric(&args),
         Some(Command::ImportCalibration(args)) => calibrate_cmd::run_import(&args),
     }

@@ -1,0 +1,237 @@
+//! The per-stage throughput check behind `tremorscan bench`: does this PC keep up with the camera?
+//!
+//! It renders a few frames of the virtual rig at the requested size once, then streams them, for
+//! the requested time, through exactly the work the pipeline's decode thread does per frame: the
+//! sliding-window decoder (frame into the window, then solve, smoothing, unwrapping), the
+//! triangulation and the copy for the display, after a few warm-up windows. Each stage is timed per window; the report gives
+//! median and 99th percentile and the window rate the decode thread sustains (one window per
+//! camera frame), from the median of its total time.
+
+use crate::decode::{DecodeError, DecodeParams, SlidingDecoder, WindowOutcome};
+use crate::frame::Frame;
+use crate::rig::{RigConfig, RigError, VirtualRig};
+use crate::triangulate::{PointCloud, TriangulateError, Triangulator};
+use std::time::{Duration, Instant};
+
+/// Frames rendered once and cycled: two full sequences, so windows see changing data.
+const FRAMES: u64 = 6;
+/// Windows decoded before timing starts: the first ones allocate and fault in the buffers.
+const WARM_UP_WINDOWS: usize = 3;
+
+/// Errors of the throughput check.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error("image size {width}×{height} is too small; at least 64×64")]
+    TooSmall { width: usize, height: usize },
+    #[error("the run time must be positive and finite, got {0} s")]
+    BadDuration(f64),
+    #[error(transparent)]
+    Rig(#[from] RigError),
+    #[error(transparent)]
+    Decode(#[from] DecodeError),
+    #[error(transparent)]
+    Triangulate(#[from] TriangulateError),
+    #[error("no window was decoded within the run time")]
+    NoWindows,
+}
+
+/// What to measure.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BenchConfig {
+    pub width: usize,
+    pub height: usize,
+    pub duration: Duration,
+}
+
+/// Median and 99th percentile of one stage, milliseconds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StageStats {
+    pub name: &'static str,
+    pub median_ms: f64,
+    pub p99_ms: f64,
+}
+
+/// The result of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchReport {
+    pub width: usize,
+    pub height: usize,
+    pub windows: usize,
+    /// Worker threads the data-parallel stages used.
+    pub threads: usize,
+    /// Per stage, in pipeline order; the decode stages sum (up to timer overhead) to `decode`.
+    pub stages: Vec<StageStats>,
+    pub decode_ms_median: f64,
+    pub triangulate_ms_median: f64,
+    /// Windows per second the decode thread sustains: 1000 / median of its total per window.
+    pub fps_sustainable: f64,
+    /// Valid points of the last window.
+    pub valid_points: usize,
+}
+
+/// The `q`-quantile (0..=1) of `values` by nearest rank; `values` is sorted in place.
+pub fn quantile(values: &mut [f64], q: f64) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    values.sort_by(f64::total_cmp);
+    let rank = (q * values.len() as f64).ceil() as usize;
+    values[rank.clamp(1, values.len()) - 1]
+}
+
+/// Renders the frames and runs the stages for `config.duration`.
+pub fn run(config: &BenchConfig) -> Result<BenchReport, BenchError> {
+    let (width, height) = (config.width, config.height);
+    if width < 64 || height < 64 {
+        return Err(BenchError::TooSmall { width, height });
+    }
+    let seconds = config.duration.as_secs_f64();
+    if !(seconds.is_finite() && seconds > 0.0) {
+        return Err(BenchError::BadDuration(seconds));
+    }
+    let rig_config = RigConfig::paper(width, height)?;
+    let sequence = rig_config.default_sequence()?;
+    let rig = VirtualRig::new(rig_config, sequence)?;
+    let frames = (0..FRAMES)
+        .map(|i| {
+            let mut frame = rig.blank_frame();
+            rig.render(i, &mut frame, None).map(|()| frame)
+        })
+        .collect::<Result<Vec<Frame>, RigError>>()?;
+    let triangulator = Triangulator::new(rig.stereo_model())?;
+    let mut decoder = SlidingDecoder::new(
+        rig.sequence.clone(),
+        rig.config.cross_talk,
+        DecodeParams::default(),
+    )?;
+    let mut cloud = PointCloud::default();
+    let mut display_image = Frame::empty();
+    let mut display_coordinate: Vec<f32> = Vec::new();
+    let names = [
+        "frame into window",
+        "solve (phasors)",
+        "smooth (unit phasor)",
+        "unwrap + checks",
+        "decode (total)",
+        "triangulate",
+        "display copy",
+        "decode thread (total)",
+    ];
+    let mut samples: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+    let mut index = 0usize;
+    let mut warm_up = WARM_UP_WINDOWS;
+    while warm_up > 0 {
+        let frame = &frames[index % frames.len()];
+        index += 1;
+        if let WindowOutcome::Decoded(out) = decoder.push(frame)? {
+            triangulator.triangulate(out, &mut cloud)?;
+            warm_up -= 1;
+        }
+    }
+    let started = Instant::now();
+    let mut valid_points = 0;
+    while started.elapsed() < config.duration || samples[0].len() < 3 {
+        let frame = &frames[index % frames.len()];
+        index += 1;
+        let t0 = Instant::now();
+        let out = match decoder.push(frame)? {
+            WindowOutcome::Decoded(out) => out,
+            _ => continue,
+        };
+        let t1 = Instant::now();
+        triangulator.triangulate(out, &mut cloud)?;
+        let t2 = Instant::now();
+        display_image.clone_from(frame);
+        display_coordinate.clone_from(&out.coordinate_px);
+        let t3 = Instant::now();
+        let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
+        let decode_ms = ms(t0, t1);
+        let timings = out.timings;
+        let row = [
+            decode_ms - timings.total_ms(),
+            timings.solve_ms,
+            timings.smooth_ms,
+            timings.unwrap_ms,
+            decode_ms,
+            ms(t1, t2),
+            ms(t2, t3),
+            ms(t0, t3),
+        ];
+        for (series, value) in samples.iter_mut().zip(row) {
+            series.push(value);
+        }
+        valid_points = cloud.valid_count();
+    }
+    let windows = samples[0].len();
+    if windows == 0 {
+        return Err(BenchError::NoWindows);
+    }
+    let stages: Vec<StageStats> = names
+        .iter()
+        .zip(&mut samples)
+        .map(|(&name, series)| StageStats {
+            name,
+            median_ms: quantile(series, 0.5),
+            p99_ms: quantile(series, 0.99),
+        })
+        .collect();
+    let median = |name: &str| {
+        stages
+            .iter()
+            .find(|s| s.name == name)
+            .map_or(f64::NAN, |s| s.median_ms)
+    };
+    let total = median("decode thread (total)");
+    Ok(BenchReport {
+        width,
+        height,
+        windows,
+        threads: rayon::current_num_threads(),
+        decode_ms_median: median("decode (total)"),
+        triangulate_ms_median: median("triangulate"),
+        fps_sustainable: 1e3 / total,
+        stages,
+        valid_points,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "tests")]
+    use super::*;
+
+    #[test]
+    fn quantiles_by_nearest_rank() {
+        let mut v: Vec<f64> = (1..=100).rev().map(f64::from).collect();
+        assert_eq!(quantile(&mut v, 0.5), 50.0);
+        assert_eq!(quantile(&mut v, 0.99), 99.0);
+        assert_eq!(quantile(&mut v, 1.0), 100.0);
+        assert_eq!(quantile(&mut [7.0], 0.99), 7.0);
+        assert!(quantile(&mut [], 0.5).is_nan());
+    }
+
+    #[test]
+    fn a_short_run_times_every_stage() {
+        let report = run(&BenchConfig {
+            width: 160,
+            height: 100,
+            duration: Duration::from_millis(200),
+        })
+        .unwrap();
+        assert!(report.windows >= 3);
+        assert_eq!(report.stages.len(), 8);
+        for s in &report.stages {
+            assert!(s.median_ms >= 0.0 && s.p99_ms >= s.median_ms, "{s:?}");
+        }
+        assert!(report.valid_points > 1000, "{}", report.valid_points);
+        let total = report.stages[7].median_ms;
+        assert!((report.fps_sustainable - 1e3 / total).abs() < 1e-9);
+        let err = run(&BenchConfig {
+            width: 32,
+            height: 100,
+            duration: Duration::from_millis(10),
+        })
+        .unwrap_err();
+        assert!(err.to_string().contains("too small"), "{err}");
+    }
+}

@@ -1,0 +1,84 @@
+//! `tremorscan bench`: the table, the verdict and the machine-readable last line.
+#![allow(clippy::unwrap_used, reason = "tests")]
+
+mod common;
+
+use common::tremorscan;
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+#[test]
+fn bench_prints_stages_and_a_parsable_last_line() {
+    let out = tremorscan(&[
+        "bench",
+        "--width",
+        "160",
+        "--height",
+        "100",
+        "--seconds",
+        "0.3",
+    ]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", text(&out.stderr));
+    for stage in [
+        "solve (phasors)",
+        "smooth (unit phasor)",
+        "triangulate",
+        "display copy",
+    ] {
+        assert!(stdout.contains(stage), "{stage} missing:\n{stdout}");
+    }
+    assert!(stdout.contains("frames/s sustainable"), "{stdout}");
+    let last = stdout.lines().last().unwrap();
+    let values: Vec<(&str, f64)> = last
+        .split_whitespace()
+        .map(|kv| {
+            let (k, v) = kv.split_once('=').unwrap();
+            (k, v.parse().unwrap())
+        })
+        .collect();
+    let keys: Vec<&str> = values.iter().map(|(k, _)| *k).collect();
+    assert_eq!(
+        keys,
+        [
+            "decode_ms_median",
+            "triangulate_ms_median",
+            "fps_sustainable"
+        ]
+    );
+    let (decode, triangulate, fps) = (values[0].1, values[1].1, values[2].1);
+    assert!(decode > 0.0 && triangulate > 0.0, "{last}");
+    // The decode thread does at least decode and triangulation per window.
+    assert!(
+        fps > 0.0 && fps <= 1e3 / (decode + triangulate) * 1.001,
+        "{last}"
+    );
+}
+
+#[test]
+fn bench_refuses_a_tiny_image_and_a_bad_duration() {
+    let out = tremorscan(&[
+        "bench",
+        "--width",
+        "10",
+        "--height",
+        "10",
+        "--seconds",
+        "0.1",
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        text(&out.stderr).contains("too small"),
+        "{}",
+        text(&out.stderr)
+    );
+    let out = tremorscan(&["bench", "--seconds=-1"]);
+    assert!(!out.status.success());
+    assert!(
+        text(&out.stderr).contains("--seconds"),
+        "{}",
+        text(&out.stderr)
+    );
+}
