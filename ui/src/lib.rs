@@ -6,6 +6,7 @@ pub mod bench_cmd;
 pub mod calibrate_cmd;
 pub mod demo;
 pub mod devices_cmd;
+pub mod gpu_decode;
 pub mod gui;
 pub mod pipeline_cmd;
 pub mod progress;

@@ -62,3 +62,50 @@ fn the_point_shader_matches_its_rust_structs() {
         );
     }
 }
+
+#[test]
+fn the_decode_shader_matches_its_rust_struct() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shaders/decode.wgsl");
+    let module = validate(&path);
+    let mut layouter = naga::proc::Layouter::default();
+    layouter.update(module.to_ctx()).expect("layout");
+    let (handle, ty) = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some("Params"))
+        .expect("Params in the shader");
+    assert_eq!(
+        layouter[handle].size as usize,
+        std::mem::size_of::<tremorscan_ui::gpu_decode::DecodeUniform>()
+    );
+    // Member offsets too: a reordered field would keep the size and scramble the values.
+    let naga::TypeInner::Struct { members, .. } = &ty.inner else {
+        panic!("Params is not a struct");
+    };
+    let offset = |name: &str| {
+        members
+            .iter()
+            .find(|m| m.name.as_deref() == Some(name))
+            .map(|m| m.offset as usize)
+            .unwrap_or_else(|| panic!("member {name}"))
+    };
+    use std::mem::offset_of;
+    use tremorscan_ui::gpu_decode::DecodeUniform as U;
+    assert_eq!(offset("freq"), offset_of!(U, freq));
+    assert_eq!(offset("gain"), offset_of!(U, gain));
+    assert_eq!(offset("x_max"), offset_of!(U, x_max));
+    assert_eq!(offset("half_period_px"), offset_of!(U, half_period_px));
+    for entry in [
+        "solve",
+        "connect",
+        "horizontal",
+        "vertical",
+        "unwrap",
+        "jumps",
+    ] {
+        assert!(
+            module.entry_points.iter().any(|e| e.name == entry),
+            "entry point {entry}"
+        );
+    }
+}

@@ -1,0 +1,75 @@
+//! The uniform of `shaders/decode.wgsl`, filled from a window solver and the decode settings.
+
+use bytemuck::{Pod, Zeroable};
+use std::f32::consts::PI;
+use tremorscan::decode::{DecodeParams, WindowSolver};
+
+/// `Params` of `shaders/decode.wgsl`, byte for byte (112 bytes; the vec3 members are 16-byte
+/// aligned there, which the field order here reproduces).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub struct DecodeUniform {
+    pub width: u32,
+    pub height: u32,
+    pub frame_words: u32,
+    pub n: u32,
+    pub saturation_level: u32,
+    pub check_jumps: u32,
+    pub pad0: [u32; 2],
+    pub freq: [f32; 3],
+    pub inv_f_unit: f32,
+    pub gain: [f32; 3],
+    pub x_max: f32,
+    pub min_amplitude: f32,
+    pub camera_noise_gray: f32,
+    pub max_disagreement_chi2: f32,
+    pub max_rounding_residual: f32,
+    pub decay: f32,
+    pub edge_phase_rad: f32,
+    pub edge_colour_ratio: f32,
+    pub edge_chromaticity: f32,
+    pub min_support: f32,
+    pub half_period_px: f32,
+    pub pad1: [f32; 2],
+}
+
+impl DecodeUniform {
+    /// The constants for a `width`×`height` window of `solver` (a CPS-RGB window with
+    /// frequencies n, n−1, n−2) decoded with `params`; the same values the CPU stages derive.
+    pub fn new(
+        width: usize,
+        height: usize,
+        solver: &WindowSolver,
+        params: &DecodeParams,
+        chebyshev_n: u32,
+    ) -> Self {
+        let f = &solver.frequency_rad_per_px;
+        let g = &solver.noise_gain;
+        let n = width * height;
+        let s = &params.smoothing;
+        Self {
+            width: width as u32,
+            height: height as u32,
+            frame_words: (n * 3).div_ceil(4) as u32,
+            n: n as u32,
+            saturation_level: u32::from(params.saturation_level),
+            check_jumps: u32::from(params.check_order_jumps),
+            pad0: [0; 2],
+            freq: [f[0], f[1], f[2]],
+            inv_f_unit: 1.0 / (f[0] / chebyshev_n as f32),
+            gain: [g[0], g[1], g[2]],
+            x_max: solver.frequencies[0] as f32 * PI / f[0],
+            min_amplitude: params.min_amplitude,
+            camera_noise_gray: params.camera_noise_gray,
+            max_disagreement_chi2: params.max_disagreement_chi2,
+            max_rounding_residual: params.max_rounding_residual,
+            decay: s.decay,
+            edge_phase_rad: s.edge_phase_rad,
+            edge_colour_ratio: s.edge_colour_ratio,
+            edge_chromaticity: s.edge_chromaticity,
+            min_support: s.min_support,
+            half_period_px: PI / f[0],
+            pad1: [0.0; 2],
+        }
+    }
+}
