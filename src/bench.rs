@@ -79,15 +79,17 @@ pub fn quantile(values: &mut [f64], q: f64) -> f64 {
     values[rank.clamp(1, values.len()) - 1]
 }
 
-/// Renders the frames and runs the stages for `config.duration`.
-pub fn run(config: &BenchConfig) -> Result<BenchReport, BenchError> {
-    let (width, height) = (config.width, config.height);
+/// What the stages run on: the rig, its frames (cycled) and the triangulator of its calibration.
+pub struct BenchInputs {
+    pub rig: VirtualRig,
+    pub frames: Vec<Frame>,
+    pub triangulator: Triangulator,
+}
+
+/// Renders the test frames of the virtual rig at `width`×`height`.
+pub fn prepare(width: usize, height: usize) -> Result<BenchInputs, BenchError> {
     if width < 64 || height < 64 {
         return Err(BenchError::TooSmall { width, height });
-    }
-    let seconds = config.duration.as_secs_f64();
-    if !(seconds.is_finite() && seconds > 0.0) {
-        return Err(BenchError::BadDuration(seconds));
     }
     let rig_config = RigConfig::paper(width, height)?;
     let sequence = rig_config.default_sequence()?;
@@ -99,6 +101,40 @@ pub fn run(config: &BenchConfig) -> Result<BenchReport, BenchError> {
         })
         .collect::<Result<Vec<Frame>, RigError>>()?;
     let triangulator = Triangulator::new(rig.stereo_model())?;
+    Ok(BenchInputs {
+        rig,
+        frames,
+        triangulator,
+    })
+}
+
+/// Median and p99 of `samples` (sorted in place).
+pub fn stage_stats(name: &'static str, samples: &mut [f64]) -> StageStats {
+    StageStats {
+        name,
+        median_ms: quantile(samples, 0.5),
+        p99_ms: quantile(samples, 0.99),
+    }
+}
+
+/// Renders the frames and runs the stages for `config.duration`.
+pub fn run(config: &BenchConfig) -> Result<BenchReport, BenchError> {
+    let inputs = prepare(config.width, config.height)?;
+    run_cpu(&inputs, config.duration)
+}
+
+/// Runs the decode thread's per-frame work on the CPU for `duration` (at least three windows).
+pub fn run_cpu(inputs: &BenchInputs, duration: Duration) -> Result<BenchReport, BenchError> {
+    let seconds = duration.as_secs_f64();
+    if !(seconds.is_finite() && seconds > 0.0) {
+        return Err(BenchError::BadDuration(seconds));
+    }
+    let BenchInputs {
+        rig,
+        frames,
+        triangulator,
+    } = inputs;
+    let (width, height) = (rig.width(), rig.height());
     let mut decoder = SlidingDecoder::new(
         rig.sequence.clone(),
         rig.config.cross_talk,
@@ -130,7 +166,7 @@ pub fn run(config: &BenchConfig) -> Result<BenchReport, BenchError> {
     }
     let started = Instant::now();
     let mut valid_points = 0;
-    while started.elapsed() < config.duration || samples[0].len() < 3 {
+    while started.elapsed() < duration || samples[0].len() < 3 {
         let frame = &frames[index % frames.len()];
         index += 1;
         let t0 = Instant::now();
@@ -169,11 +205,7 @@ pub fn run(config: &BenchConfig) -> Result<BenchReport, BenchError> {
     let stages: Vec<StageStats> = names
         .iter()
         .zip(&mut samples)
-        .map(|(&name, series)| StageStats {
-            name,
-            median_ms: quantile(series, 0.5),
-            p99_ms: quantile(series, 0.99),
-        })
+        .map(|(&name, series)| stage_stats(name, series))
         .collect();
     let median = |name: &str| {
         stages
