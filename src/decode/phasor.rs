@@ -201,23 +201,31 @@ fn solve_row<F: Borrow<Frame>>(
         }
     }
     let min_amplitude = params.min_amplitude;
+    // The reasons as f32 sums of distinct powers of two, so this loop stays in f32 lanes and
+    // vectorises; narrowed to bytes in the next.
+    let reasons = &mut saturated[..w];
+    let (re, im, support) = (&mut row.re[..w], &mut row.im[..w], &mut row.support[..w]);
+    let inconsistent = &inconsistent[..w];
+    let amp = &row.amp[..nf * w];
     for x in 0..w {
-        let mut min_amp = row.amp[x];
+        let mut min_amp = amp[x];
         for f in 1..nf {
-            min_amp = min_amp.min(row.amp[f * w + x]);
+            min_amp = min_amp.min(amp[f * w + x]);
         }
         // A NaN amplitude counts as low.
-        let low = u8::from(min_amp.is_nan() | (min_amp < min_amplitude));
-        let sat = u8::from(saturated[x] > 0.0);
-        let odd = u8::from(inconsistent[x] > 0.0);
-        let reason = (low * invalid::LOW_AMPLITUDE)
-            | (sat * invalid::SATURATED)
-            | (odd * invalid::DISAGREEMENT);
-        row.flags[x] = reason;
-        let keep = f32::from(u8::from(reason == 0));
-        row.support[x] = keep;
-        row.re[x] *= keep;
-        row.im[x] *= keep;
+        let low = min_amp.is_nan() | (min_amp < min_amplitude);
+        let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
+        let reason = bit(low, invalid::LOW_AMPLITUDE)
+            + bit(reasons[x] > 0.0, invalid::SATURATED)
+            + bit(inconsistent[x] > 0.0, invalid::DISAGREEMENT);
+        reasons[x] = reason;
+        let keep = if reason == 0.0 { 1.0 } else { 0.0 };
+        support[x] = keep;
+        re[x] *= keep;
+        im[x] *= keep;
+    }
+    for (flag, &reason) in row.flags[..w].iter_mut().zip(&*reasons) {
+        *flag = reason as u8;
     }
 }
 

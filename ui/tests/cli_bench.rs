@@ -32,7 +32,10 @@ fn bench_prints_stages_and_a_parsable_last_line() {
     }
     assert!(stdout.contains("frames/s sustainable"), "{stdout}");
     // The CI machine has lavapipe: the GPU path runs there too.
-    assert!(stdout.contains("GPU (") && stdout.contains("decode"), "{stdout}");
+    assert!(
+        stdout.contains("GPU (") && stdout.contains("decode"),
+        "{stdout}"
+    );
     let last = stdout.lines().last().unwrap();
     let values: Vec<(&str, f64)> = last
         .split_whitespace()
