@@ -51,6 +51,52 @@ fn bench_decode(c: &mut Criterion) {
     group.finish();
 }
 
+/// The fast decoder against the straightforward per-pixel 9×9 solve (`decode::reference`), the
+/// comparison table of `docs/benchmarks.md`. The equality of their results is tested in
+/// `tests/decode_reference.rs`.
+fn bench_reference(c: &mut Criterion) {
+    use tremorscan::decode::reference::decode_window_reference;
+    let mut group = c.benchmark_group("fast_vs_reference");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(20));
+    for (w, h) in SIZES {
+        let rig = rig(w, h);
+        let frames: Vec<Frame> = (0..3)
+            .map(|i| {
+                let mut f = rig.blank_frame();
+                rig.render(i, &mut f, None).unwrap();
+                f
+            })
+            .collect();
+        let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+        let mut out = DecodeOutput::new(w, h, &solver);
+        let params = DecodeParams::default();
+        let size = format!("{w}x{h}");
+        group.bench_with_input(BenchmarkId::new("fast", &size), &(), |b, ()| {
+            b.iter(|| decode_window(&solver, &frames, &params, Some(65), &mut out).unwrap());
+        });
+        group.bench_with_input(BenchmarkId::new("reference", &size), &(), |b, ()| {
+            b.iter(|| {
+                decode_window_reference(&solver, &frames, &params, Some(65), &mut out).unwrap()
+            });
+        });
+        // Stage 1 alone: the part the reference does differently.
+        let mut last = (0.0, 0.0);
+        for _ in 0..3 {
+            decode_window(&solver, &frames, &params, Some(65), &mut out).unwrap();
+            let fast = out.timings.solve_ms;
+            decode_window_reference(&solver, &frames, &params, Some(65), &mut out).unwrap();
+            last = (fast, out.timings.solve_ms);
+        }
+        println!(
+            "fast_vs_reference/{size}: solve stage {:.2} ms (fast) vs {:.1} ms (reference)",
+            last.0, last.1
+        );
+    }
+    group.finish();
+}
+
 fn bench_rig(c: &mut Criterion) {
     let mut group = c.benchmark_group("virtual_rig_render");
     group
@@ -117,6 +163,7 @@ fn bench_demosaic(c: &mut Criterion) {
     group.finish();
 }
 
+criterion_group!(reference_comparison, bench_reference);
 criterion_group!(
     benches,
     bench_decode,
@@ -124,4 +171,4 @@ criterion_group!(
     bench_rig,
     bench_demosaic
 );
-criterion_main!(benches);
+criterion_main!(benches, reference_comparison);

@@ -14,12 +14,14 @@
 //!
 //! Rows are processed in bands in parallel with rayon; buffers are laid out row-planar
 //! (`[row][plane][x]`) so that every per-row loop runs over contiguous `f32` and vectorises.
-//! [`window::SlidingDecoder`] drives the stages over a stream of frames.
+//! [`window::SlidingDecoder`] drives the stages over a stream of frames; [`reference`] is the
+//! straightforward per-pixel solve the fast path is tested and benchmarked against.
 
 mod connect;
 mod consistency;
 pub mod fastmath;
 pub mod phasor;
+pub mod reference;
 pub mod smooth;
 pub mod solver;
 pub mod unwrap;
@@ -323,6 +325,22 @@ pub fn decode_window<F: Borrow<Frame> + Sync>(
     chebyshev_n: Option<u32>,
     out: &mut DecodeOutput,
 ) -> Result<(), DecodeError> {
+    check_window(solver, frames, params, chebyshev_n, out)?;
+    let chebyshev = params.unwrap != UnwrapMethod::Temporal;
+    let started = Instant::now();
+    phasor::solve_phasors(solver, frames, params, chebyshev, out);
+    finish_window(solver, params, chebyshev_n, started, out);
+    Ok(())
+}
+
+/// Checks the window against `solver` and `params`, sizes `out` and stamps its time.
+pub(crate) fn check_window<F: Borrow<Frame>>(
+    solver: &WindowSolver,
+    frames: &[F],
+    params: &DecodeParams,
+    chebyshev_n: Option<u32>,
+    out: &mut DecodeOutput,
+) -> Result<(), DecodeError> {
     if frames.len() != solver.order.len() {
         return Err(DecodeError::WrongFrameCount {
             expected: solver.order.len(),
@@ -372,9 +390,17 @@ pub fn decode_window<F: Borrow<Frame> + Sync>(
         *out = DecodeOutput::new(width, height, solver);
     }
     out.time_s = frames.iter().map(|f| f.borrow().time_s).sum::<f64>() / frames.len() as f64;
-    let chebyshev = params.unwrap != UnwrapMethod::Temporal;
-    let started = Instant::now();
-    phasor::solve_phasors(solver, frames, params, chebyshev, out);
+    Ok(())
+}
+
+/// Stages 2–4 after stage 1 (which started at `started`), and the timings.
+pub(crate) fn finish_window(
+    solver: &WindowSolver,
+    params: &DecodeParams,
+    chebyshev_n: Option<u32>,
+    started: Instant,
+    out: &mut DecodeOutput,
+) {
     let solved = Instant::now();
     if params.unwrap == UnwrapMethod::ChebyshevRobust {
         smooth::smooth_unit_phasor(out, &params.smoothing);
@@ -391,5 +417,4 @@ pub fn decode_window<F: Borrow<Frame> + Sync>(
         smooth_ms: (smoothed - solved).as_secs_f64() * 1e3,
         unwrap_ms: (done - smoothed).as_secs_f64() * 1e3,
     };
-    Ok(())
 }

@@ -34,6 +34,8 @@ pub struct WindowSolver {
     pub frequency_rad_per_px: Vec<f32>,
     /// `M⁺`, row-major: `unknowns × observations`.
     pub pinv: Vec<f32>,
+    /// The design matrix `M` itself, row-major `observations × unknowns`, in f64.
+    pub design: Vec<f64>,
     pub observations: usize,
     pub unknowns: usize,
     /// Ratio of smallest to largest singular value of `M`.
@@ -131,7 +133,12 @@ impl WindowSolver {
                 ((row_norm2(u) + row_norm2(u + 1)) / 2.0).sqrt() as f32
             })
             .collect();
+        let design_rows = (0..observations)
+            .flat_map(|r| (0..unknowns).map(move |c| (r, c)))
+            .map(|rc| design[rc])
+            .collect();
         Ok(Self {
+            design: design_rows,
             noise_gain,
             order: order.to_vec(),
             channels,
