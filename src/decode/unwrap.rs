@@ -56,9 +56,12 @@ pub(crate) fn unwrap_and_combine(
         .zip(out.unit_re.par_chunks(w))
         .zip(out.unit_im.par_chunks(w))
         .zip(out.support.par_chunks(w))
+        // Free after smoothing: one row of it per row of the image.
+        .zip(out.smooth_tmp.par_chunks_mut(w))
         .for_each(
-            |(((((((coord, coarse), flags), phase), amp), re), im), support)| {
+            |((((((((coord, coarse), flags), phase), amp), re), im), support), scratch)| {
                 let row = Row {
+                    scratch,
                     coord,
                     coarse,
                     flags,
@@ -89,6 +92,8 @@ struct Consts<'a> {
 }
 
 struct Row<'a> {
+    /// One row of scratch.
+    scratch: &'a mut [f32],
     coord: &'a mut [f32],
     coarse: &'a mut [f32],
     flags: &'a mut [u8],
@@ -112,24 +117,35 @@ fn chebyshev_row(c: &Consts<'_>, row: Row<'_>) {
     let w = c.w;
     let p = &c.params;
     let robust = p.unwrap == UnwrapMethod::ChebyshevRobust;
-    let (ph0, rest) = row.phase.split_at(w);
-    let (ph1, ph2) = rest.split_at(w);
-    let (am0, rest) = row.amp.split_at(w);
-    let (am1, am2) = rest.split_at(w);
+    // Every slice exactly `w` long: no bounds checks in the loops, which then vectorise.
+    let (ph0, ph1, ph2) = (
+        &row.phase[..w],
+        &row.phase[w..2 * w],
+        &row.phase[2 * w..3 * w],
+    );
+    let (am0, am1, am2) = (&row.amp[..w], &row.amp[w..2 * w], &row.amp[2 * w..3 * w]);
+    let (coarse, coord, flags) = (
+        &mut row.coarse[..w],
+        &mut row.coord[..w],
+        &mut row.flags[..w],
+    );
+    // New reason bits as f32 sums of distinct powers of two, merged into the byte flags last.
+    let added = &mut row.scratch[..w];
     let (f0, fa, fb) = (c.f[0], c.f[1], c.f[2]);
     let inv_f1 = 1.0 / c.f1;
-    // The coarse coordinate first, in a loop of its own so the main loop has no calls and
-    // vectorises.
+    let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
+    // The coarse coordinate first, in a loop of its own so the main loop has no calls.
     if robust {
+        let (re, im, support) = (&row.re[..w], &row.im[..w], &row.support[..w]);
+        let min_support = p.smoothing.min_support;
         for x in 0..w {
-            row.coarse[x] = unit_angle(row.re[x], row.im[x]) * inv_f1;
-            if row.support[x] < p.smoothing.min_support {
-                row.flags[x] |= invalid::LOW_SUPPORT;
-            }
+            coarse[x] = unit_angle(re[x], im[x]) * inv_f1;
+            added[x] = bit(support[x] < min_support, invalid::LOW_SUPPORT);
         }
     } else {
         for x in 0..w {
-            row.coarse[x] = paper_coarse(ph0[x], ph1[x], ph2[x]) * inv_f1;
+            coarse[x] = paper_coarse(ph0[x], ph1[x], ph2[x]) * inv_f1;
+            added[x] = 0.0;
         }
     }
     // Inverse-variance weights are (a·f/g)², with g the solver's noise gain of the slot.
@@ -137,8 +153,7 @@ fn chebyshev_row(c: &Consts<'_>, row: Row<'_>) {
     let (k0, k1, k2) = (k0 * k0, k1 * k1, k2 * k2);
     let inv_noise2 = 1.0 / (p.camera_noise_gray * p.camera_noise_gray);
     for x in 0..w {
-        let mut reason = row.flags[x];
-        let xc = row.coarse[x];
+        let xc = coarse[x];
         let (x0, r0) = unwrap_one(xc, ph0[x], f0);
         let (x1, r1) = unwrap_one(xc, ph1[x], fa);
         let (x2, r2) = unwrap_one(xc, ph2[x], fb);
@@ -154,19 +169,21 @@ fn chebyshev_row(c: &Consts<'_>, row: Row<'_>) {
         } else {
             x0
         };
-        if r0.max(r1).max(r2) > p.max_rounding_residual {
-            reason |= invalid::UNWRAP_MARGIN;
-        }
         let (d0, d1, d2) = (x0 - combined, x1 - combined, x2 - combined);
         let chi2 = (w0 * d0 * d0 + w1 * d1 * d1 + w2 * d2 * d2) * inv_noise2;
-        if chi2 > p.max_disagreement_chi2 {
-            reason |= invalid::DISAGREEMENT;
+        added[x] += bit(
+            r0.max(r1).max(r2) > p.max_rounding_residual,
+            invalid::UNWRAP_MARGIN,
+        ) + bit(chi2 > p.max_disagreement_chi2, invalid::DISAGREEMENT)
+            + bit(!(-0.5..c.x_max).contains(&combined), invalid::OUT_OF_RANGE);
+        coord[x] = combined;
+    }
+    for x in 0..w {
+        let reason = flags[x] | added[x] as u8;
+        flags[x] = reason;
+        if reason != 0 {
+            coord[x] = f32::NAN;
         }
-        if !(-0.5..c.x_max).contains(&combined) {
-            reason |= invalid::OUT_OF_RANGE;
-        }
-        row.flags[x] = reason;
-        row.coord[x] = if reason == 0 { combined } else { f32::NAN };
     }
 }
 
