@@ -27,42 +27,52 @@ pub(crate) fn smooth_unit_phasor(out: &mut DecodeOutput, params: &SmoothingParam
 }
 
 /// Horizontal recursion of one row: `F[x] = v[x] + g[x−1]·F[x−1]`, `B[x] = v[x] + g[x]·B[x+1]`,
-/// result `F + B − v` written to `dst`, for the three planes at once (three independent chains
-/// hide the latency of the recursion).
+/// result `F + B − v` written to `dst`, for the three planes at once. The forward and the
+/// backward recursion run in the same loop (from both ends), so six independent chains hide the
+/// latency of each step; `B` goes to `scratch` and is added in a last, vectorised pass.
 #[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
 fn horizontal_row(
     src: [&[f32]; 3],
     dst: [&mut [f32]; 3],
     link: &[u8],
     decay: f32,
-    gain: &mut [f32],
+    scratch: &mut [f32],
 ) {
     let w = link.len();
-    let gain = &mut gain[..w];
+    let (gain, rest) = scratch.split_at_mut(w);
+    let (b0s, rest) = rest.split_at_mut(w);
+    let (b1s, rest) = rest.split_at_mut(w);
+    let b2s = &mut rest[..w];
     for x in 0..w {
         gain[x] = if link[x] & RIGHT != 0 { decay } else { 0.0 };
     }
     let [v0, v1, v2] = src;
+    let (v0, v1, v2) = (&v0[..w], &v1[..w], &v2[..w]);
     let [p0, p1, p2] = dst;
+    let (p0, p1, p2) = (&mut p0[..w], &mut p1[..w], &mut p2[..w]);
     let (mut f0, mut f1, mut f2) = (0.0f32, 0.0f32, 0.0f32);
-    for x in 0..w {
-        let g = if x > 0 { gain[x - 1] } else { 0.0 };
-        f0 = v0[x] + g * f0;
-        f1 = v1[x] + g * f1;
-        f2 = v2[x] + g * f2;
-        p0[x] = f0;
-        p1[x] = f1;
-        p2[x] = f2;
-    }
     let (mut b0, mut b1, mut b2) = (0.0f32, 0.0f32, 0.0f32);
-    for x in (0..w).rev() {
+    for i in 0..w {
+        let g = if i > 0 { gain[i - 1] } else { 0.0 };
+        f0 = v0[i] + g * f0;
+        f1 = v1[i] + g * f1;
+        f2 = v2[i] + g * f2;
+        p0[i] = f0;
+        p1[i] = f1;
+        p2[i] = f2;
+        let x = w - 1 - i;
         let g = gain[x];
         b0 = v0[x] + g * b0;
         b1 = v1[x] + g * b1;
         b2 = v2[x] + g * b2;
-        p0[x] += b0 - v0[x];
-        p1[x] += b1 - v1[x];
-        p2[x] += b2 - v2[x];
+        b0s[x] = b0;
+        b1s[x] = b1;
+        b2s[x] = b2;
+    }
+    for x in 0..w {
+        p0[x] += b0s[x] - v0[x];
+        p1[x] += b1s[x] - v1[x];
+        p2[x] += b2s[x] - v2[x];
     }
 }
 
