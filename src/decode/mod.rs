@@ -310,11 +310,11 @@ impl DecodeOutput {
     }
 }
 
-/// Scratch floats each band needs: one row of observation planes, unknown planes and three
-/// flag rows for stage 1, at least four rows (gains and the backward recursion) for the
-/// smoothing (the rows of a band are processed one after another and reuse it).
+/// Scratch floats each band needs: stage 1's chunk planes, or four rows (gains and the backward
+/// recursion) for the smoothing (the rows of a band are processed one after another and reuse
+/// it).
 fn scratch_per_band(width: usize, solver: &WindowSolver) -> usize {
-    width * (solver.observations + solver.unknowns + 3).max(4)
+    (width * 4).max(phasor::scratch_len(solver))
 }
 
 /// Decodes one window of `frames` (oldest first, matching `solver.order`) into `out`. `frames`

@@ -49,22 +49,42 @@ pub(crate) fn solve_phasors<F: Borrow<Frame> + Sync>(
                 let rows = flags.len() / w;
                 for r in 0..rows {
                     let y = band * BAND_ROWS + r;
-                    let row = RowOut {
-                        phase: &mut phase[r * nf * w..(r + 1) * nf * w],
-                        amp: &mut amp[r * nf * w..(r + 1) * nf * w],
-                        colour: &mut colour[r * nc * w..(r + 1) * nc * w],
-                        re: &mut re[r * w..(r + 1) * w],
-                        im: &mut im[r * w..(r + 1) * w],
-                        support: &mut support[r * w..(r + 1) * w],
-                        flags: &mut flags[r * w..(r + 1) * w],
-                    };
-                    solve_row(solver, frames, params, chebyshev, y, w, scratch, row);
+                    // Column chunks of `CHUNK_PX`: the kernel's scratch planes stay in the L1
+                    // cache. Its outputs are written in place; plane p of a chunk starts p·w
+                    // after its first value.
+                    for x0 in (0..w).step_by(CHUNK_PX) {
+                        let cw = CHUNK_PX.min(w - x0);
+                        let px = r * w + x0..r * w + x0 + cw;
+                        let view = RowOut {
+                            stride: w,
+                            phase: &mut phase[r * nf * w + x0..(r + 1) * nf * w],
+                            amp: &mut amp[r * nf * w + x0..(r + 1) * nf * w],
+                            colour: &mut colour[r * nc * w + x0..(r + 1) * nc * w],
+                            re: &mut re[px.clone()],
+                            im: &mut im[px.clone()],
+                            support: &mut support[px.clone()],
+                            flags: &mut flags[px],
+                        };
+                        let start = y * w + x0;
+                        solve_row(solver, frames, params, chebyshev, start, cw, scratch, view);
+                    }
                 }
             },
         );
 }
 
+/// Pixels per column chunk of stage 1.
+pub(crate) const CHUNK_PX: usize = 256;
+
+/// Scratch floats per band of stage 1: one chunk of observation and unknown planes and three
+/// flag rows.
+pub(crate) fn scratch_len(solver: &WindowSolver) -> usize {
+    CHUNK_PX * (solver.observations + solver.unknowns + 3)
+}
+
 struct RowOut<'a> {
+    /// Distance between the planes of `phase`, `amp` and `colour`.
+    stride: usize,
     phase: &'a mut [f32],
     amp: &'a mut [f32],
     colour: &'a mut [f32],
@@ -84,7 +104,7 @@ fn solve_row<F: Borrow<Frame>>(
     frames: &[F],
     params: &DecodeParams,
     chebyshev: bool,
-    y: usize,
+    start: usize,
     w: usize,
     scratch: &mut [f32],
     row: RowOut<'_>,
@@ -102,7 +122,7 @@ fn solve_row<F: Borrow<Frame>>(
     // Each loop reads one interleaved row with fixed stride so it vectorises.
     for (k, frame) in frames.iter().map(Borrow::borrow).enumerate() {
         let src_channels = frame.channels;
-        let src = &frame.data[y * w * src_channels..(y + 1) * w * src_channels];
+        let src = &frame.data[start * src_channels..(start + w) * src_channels];
         if src_channels == 1 {
             let plane = &mut obs[k * w..(k + 1) * w];
             for x in 0..w {
@@ -156,14 +176,17 @@ fn solve_row<F: Borrow<Frame>>(
 
     let nc = solver.channels;
     let nf = solver.frequencies.len();
-    row.colour.copy_from_slice(&u[..nc * w]);
+    let stride = row.stride;
+    for c in 0..nc {
+        row.colour[c * stride..c * stride + w].copy_from_slice(&u[c * w..(c + 1) * w]);
+    }
     row.re.fill(0.0);
     row.im.fill(0.0);
     for f in 0..nf {
         let cu = &u[solver.cos_unknown(f) * w..(solver.cos_unknown(f) + 1) * w];
         let sv = &u[(solver.cos_unknown(f) + 1) * w..(solver.cos_unknown(f) + 2) * w];
-        let phase = &mut row.phase[f * w..(f + 1) * w];
-        let amp = &mut row.amp[f * w..(f + 1) * w];
+        let phase = &mut row.phase[f * stride..f * stride + w];
+        let amp = &mut row.amp[f * stride..f * stride + w];
         for x in 0..w {
             phase[x] = phase_0_tau(sv[x], cu[x]);
             amp[x] = (cu[x] * cu[x] + sv[x] * sv[x]).sqrt();
@@ -206,12 +229,19 @@ fn solve_row<F: Borrow<Frame>>(
     let reasons = &mut saturated[..w];
     let (re, im, support) = (&mut row.re[..w], &mut row.im[..w], &mut row.support[..w]);
     let inconsistent = &inconsistent[..w];
-    let amp = &row.amp[..nf * w];
-    for x in 0..w {
-        let mut min_amp = amp[x];
-        for f in 1..nf {
-            min_amp = min_amp.min(amp[f * w + x]);
+    // The smallest amplitude per pixel, into the unknowns' first plane (no longer needed).
+    let min_amps = &mut u[..w];
+    min_amps.copy_from_slice(&row.amp[..w]);
+    for f in 1..nf {
+        for (m, &a) in min_amps
+            .iter_mut()
+            .zip(&row.amp[f * stride..f * stride + w])
+        {
+            *m = m.min(a);
         }
+    }
+    for x in 0..w {
+        let min_amp = min_amps[x];
         // A NaN amplitude counts as low.
         let low = min_amp.is_nan() | (min_amp < min_amplitude);
         let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
