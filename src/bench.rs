@@ -15,6 +15,8 @@ use std::time::{Duration, Instant};
 
 /// Frames rendered once and cycled: two full sequences, so windows see changing data.
 const FRAMES: u64 = 6;
+/// The largest image side the check accepts (a 8192×8192 window needs about 3 GB).
+pub const MAX_SIDE: usize = 8192;
 /// Windows decoded before timing starts: the first ones allocate and fault in the buffers.
 const WARM_UP_WINDOWS: usize = 3;
 
@@ -23,6 +25,8 @@ const WARM_UP_WINDOWS: usize = 3;
 pub enum BenchError {
     #[error("image size {width}×{height} is too small; at least 64×64")]
     TooSmall { width: usize, height: usize },
+    #[error("image size {width}×{height} is too large; at most {MAX_SIDE}×{MAX_SIDE}")]
+    TooLarge { width: usize, height: usize },
     #[error("the run time must be positive and finite, got {0} s")]
     BadDuration(f64),
     #[error(transparent)]
@@ -90,6 +94,9 @@ pub struct BenchInputs {
 pub fn prepare(width: usize, height: usize) -> Result<BenchInputs, BenchError> {
     if width < 64 || height < 64 {
         return Err(BenchError::TooSmall { width, height });
+    }
+    if width > MAX_SIDE || height > MAX_SIDE {
+        return Err(BenchError::TooLarge { width, height });
     }
     let rig_config = RigConfig::paper(width, height)?;
     let sequence = rig_config.default_sequence()?;
@@ -265,5 +272,7 @@ mod tests {
         })
         .unwrap_err();
         assert!(err.to_string().contains("too small"), "{err}");
+        let err = prepare(100_000, 100).err().unwrap();
+        assert!(err.to_string().contains("too large"), "{err}");
     }
 }

@@ -92,18 +92,29 @@ impl FastTable {
         table
     }
 
-    /// Appends `other`'s pixels (built for the same model) after this table's.
-    pub fn append(&mut self, other: Self) {
-        self.ray_x.extend(other.ray_x);
-        self.ray_y.extend(other.ray_y);
-        self.den0.extend(other.den0);
-        self.den1.extend(other.den1);
-        self.x_mid.extend(other.x_mid);
-        for (plane, more) in self.coeff.iter_mut().zip(other.coeff) {
-            plane.extend(more);
+    /// Joins tables built for consecutive pixel ranges of one model, allocating exactly once.
+    pub fn concat(model: &StereoModel, parts: Vec<Self>) -> Self {
+        let n = parts.iter().map(|p| p.x_mid.len()).sum();
+        let mut table = Self::new(model, &[]);
+        table.ray_x.reserve_exact(n);
+        table.ray_y.reserve_exact(n);
+        table.den0.reserve_exact(n);
+        table.den1.reserve_exact(n);
+        table.x_mid.reserve_exact(n);
+        for plane in &mut table.coeff {
+            plane.reserve_exact(n);
         }
-        self.num0 = other.num0;
-        self.num1 = other.num1;
+        for part in parts {
+            table.ray_x.extend(part.ray_x);
+            table.ray_y.extend(part.ray_y);
+            table.den0.extend(part.den0);
+            table.den1.extend(part.den1);
+            table.x_mid.extend(part.x_mid);
+            for (plane, more) in table.coeff.iter_mut().zip(part.coeff) {
+                plane.extend(more);
+            }
+        }
+        table
     }
 
     pub fn memory_bytes(&self) -> usize {

@@ -103,10 +103,7 @@ impl Triangulator {
             .par_chunks(cam.width)
             .map(|row| fast::FastTable::new(&model, row))
             .collect();
-        let mut table = fast::FastTable::new(&model, &[]);
-        for row in rows {
-            table.append(row);
-        }
+        let table = fast::FastTable::concat(&model, rows);
         Ok(Self { model, table })
     }
 
