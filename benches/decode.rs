@@ -18,6 +18,17 @@ fn rig(width: usize, height: usize) -> VirtualRig {
     VirtualRig::new(config, seq).unwrap()
 }
 
+/// The rig's frames 0, 1, 2: one window.
+fn first_window(rig: &VirtualRig) -> Vec<Frame> {
+    (0..3)
+        .map(|i| {
+            let mut f = rig.blank_frame();
+            rig.render(i, &mut f, None).unwrap();
+            f
+        })
+        .collect()
+}
+
 fn bench_decode(c: &mut Criterion) {
     let mut group = c.benchmark_group("decode_cps_rgb_window");
     group
@@ -25,13 +36,7 @@ fn bench_decode(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(8));
     for (w, h) in SIZES {
         let rig = rig(w, h);
-        let frames: Vec<Frame> = (0..3)
-            .map(|i| {
-                let mut f = rig.blank_frame();
-                rig.render(i, &mut f, None).unwrap();
-                f
-            })
-            .collect();
+        let frames = first_window(&rig);
         let refs: Vec<&Frame> = frames.iter().collect();
         let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
         let mut out = DecodeOutput::new(w, h, &solver);
@@ -62,13 +67,7 @@ fn bench_reference(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(20));
     for (w, h) in SIZES {
         let rig = rig(w, h);
-        let frames: Vec<Frame> = (0..3)
-            .map(|i| {
-                let mut f = rig.blank_frame();
-                rig.render(i, &mut f, None).unwrap();
-                f
-            })
-            .collect();
+        let frames = first_window(&rig);
         let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
         let mut out = DecodeOutput::new(w, h, &solver);
         let params = DecodeParams::default();

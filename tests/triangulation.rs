@@ -9,13 +9,22 @@ use tremorscan::pattern::{cps_rgb, Axis};
 use tremorscan::rig::{GroundTruth, NoiseModel, VirtualRig};
 use tremorscan::triangulate::{PointCloud, Triangulator};
 
-#[test]
-fn exact_coordinates_give_exact_depth_on_every_axis() {
-    for (axis, n, x_max) in [
+/// The still hand under one coded axis, noise-free, with the truth of frame 0.
+struct AxisCase {
+    axis: Axis,
+    rig: VirtualRig,
+    triangulator: Triangulator,
+    truth: GroundTruth,
+}
+
+fn axis_cases() -> Vec<AxisCase> {
+    [
         (Axis::Columns, 65, 912.0),
         (Axis::Rows, 81, 1140.0),
         (Axis::Diagonal, 107, 1481.0),
-    ] {
+    ]
+    .into_iter()
+    .map(|(axis, n, x_max)| {
         let config = still_hand_rig(NoiseModel::none());
         let seq = cps_rgb(n, x_max, axis, 6).unwrap();
         let rig = VirtualRig::new(config, seq).unwrap();
@@ -23,6 +32,25 @@ fn exact_coordinates_give_exact_depth_on_every_axis() {
         let mut frame = rig.blank_frame();
         let mut truth = GroundTruth::default();
         rig.render(0, &mut frame, Some(&mut truth)).unwrap();
+        AxisCase {
+            axis,
+            rig,
+            triangulator,
+            truth,
+        }
+    })
+    .collect()
+}
+
+#[test]
+fn exact_coordinates_give_exact_depth_on_every_axis() {
+    for AxisCase {
+        axis,
+        triangulator,
+        truth,
+        ..
+    } in axis_cases()
+    {
         let (mut worst, mut count) = (0f64, 0usize);
         for (p, (&x, &depth)) in truth.coordinate_px.iter().zip(&truth.depth_mm).enumerate() {
             if !x.is_finite() {
@@ -117,20 +145,15 @@ fn a_map_of_the_wrong_size_is_refused() {
 #[test]
 fn fast_path_matches_the_exact_solution_on_every_axis() {
     use tremorscan::decode::{DecodeOutput, WindowSolver};
-    for (axis, n, x_max) in [
-        (Axis::Columns, 65, 912.0),
-        (Axis::Rows, 81, 1140.0),
-        (Axis::Diagonal, 107, 1481.0),
-    ] {
-        let config = still_hand_rig(NoiseModel::none());
-        let seq = cps_rgb(n, x_max, axis, 6).unwrap();
-        let rig = VirtualRig::new(config, seq.clone()).unwrap();
-        let triangulator = Triangulator::new(rig.stereo_model()).unwrap();
-        let mut frame = rig.blank_frame();
-        let mut truth = GroundTruth::default();
-        rig.render(0, &mut frame, Some(&mut truth)).unwrap();
-        let solver = WindowSolver::new(&seq, &[0, 1, 2], &rig.config.cross_talk).unwrap();
-        let mut decoded = DecodeOutput::new(frame.width, frame.height, &solver);
+    for AxisCase {
+        axis,
+        rig,
+        triangulator,
+        truth,
+    } in axis_cases()
+    {
+        let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+        let mut decoded = DecodeOutput::new(rig.width(), rig.height(), &solver);
         decoded.coordinate_px.clone_from(&truth.coordinate_px);
         decoded.amplitude.fill(10.0);
         let mut cloud = PointCloud::default();

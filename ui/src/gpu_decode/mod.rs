@@ -21,8 +21,8 @@ use tremorscan::frame::Frame;
 /// The decode shader, validated by naga in `ui/tests/shaders.rs`.
 pub const SHADER_WGSL: &str = include_str!("../../../shaders/decode.wgsl");
 
-/// Entry points, in the order they run.
-const STAGES: [&str; 6] = [
+/// Entry points of the shader, in the order they run.
+pub const STAGES: [&str; 6] = [
     "solve",
     "connect",
     "horizontal",
