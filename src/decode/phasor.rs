@@ -1,8 +1,10 @@
 //! Stage 1: per-pixel solve of the window system, wrapped phases, amplitudes, colour and the
 //! Chebyshev unit phasor.
 //!
-//! Each band of rows unpacks its observations into planar `f32` rows, multiplies them by `M⁺`
-//! plane by plane (contiguous loops that vectorise), then derives per pixel:
+//! Each band of rows is processed in column chunks of [`CHUNK_PX`] pixels, so that the kernel's
+//! scratch planes stay in the L1 cache: a chunk unpacks its observations into planar `f32`
+//! rows, multiplies them by `M⁺` plane by plane (contiguous loops that vectorise; the flags too
+//! are computed in `f32` lanes), then derives per pixel:
 //!
 //! * `phase_f = atan2(V_f, U_f)` in `[0, 2π)` and `amplitude_f = |U_f + iV_f|`;
 //! * for CPS, with `z_f = U_f + iV_f` (slots 0, 1, 2 = frequencies n, n−1, n−2), the unit phasor
