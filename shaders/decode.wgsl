@@ -19,7 +19,9 @@ struct Params {
     n: u32,
     saturation_level: u32,
     check_jumps: u32,
-    _pad0: u32,
+    // The slot of `frames` holding the window's oldest frame; frame k is in slot
+    // (first_slot + k) mod 3, so a new frame replaces only the oldest one.
+    first_slot: u32,
     _pad1: u32,
     // Angular frequency of each slot (n, n−1, n−2), rad per projector px, and 1/f_1.
     freq: vec3<f32>,
@@ -42,7 +44,7 @@ struct Params {
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
-// Three frames of interleaved 8-bit RGB, oldest first, each padded to frame_words words.
+// Three slots of one frame of interleaved 8-bit RGB each, padded to frame_words words.
 @group(0) @binding(1) var<storage, read> frames: array<u32>;
 // The solver's pseudo-inverse, row-major 9×9.
 @group(0) @binding(2) var<storage, read> pinv: array<f32>;
@@ -116,7 +118,7 @@ fn solve(@builtin(global_invocation_id) id: vec3<u32>) {
     var obs: array<f32, 9>;
     var saturated = false;
     for (var k = 0u; k < 3u; k++) {
-        let base = k * P.frame_words * 4u + i * 3u;
+        let base = ((P.first_slot + k) % 3u) * P.frame_words * 4u + i * 3u;
         for (var j = 0u; j < 3u; j++) {
             let v = byte_at(base + j);
             obs[k * 3u + j] = f32(v);

@@ -7,7 +7,9 @@
 //! median and 99th percentile and the window rate the decode thread sustains (one window per
 //! camera frame), from the median of its total time.
 
-use crate::decode::{DecodeError, DecodeParams, SlidingDecoder, WindowOutcome};
+use crate::decode::{
+    CpuBackend, DecodeBackend, DecodeError, DecodeParams, SlidingDecoder, WindowOutcome,
+};
 use crate::frame::Frame;
 use crate::rig::{RigConfig, RigError, VirtualRig};
 use crate::triangulate::{PointCloud, TriangulateError, Triangulator};
@@ -63,6 +65,8 @@ pub struct BenchReport {
     pub windows: usize,
     /// Worker threads the data-parallel stages used.
     pub threads: usize,
+    /// What ran the decode.
+    pub backend: String,
     /// Per stage, in pipeline order; the decode stages sum (up to timer overhead) to `decode`.
     pub stages: Vec<StageStats>,
     pub decode_ms_median: f64,
@@ -132,6 +136,17 @@ pub fn run(config: &BenchConfig) -> Result<BenchReport, BenchError> {
 
 /// Runs the decode thread's per-frame work on the CPU for `duration` (at least three windows).
 pub fn run_cpu(inputs: &BenchInputs, duration: Duration) -> Result<BenchReport, BenchError> {
+    run_with(inputs, duration, Box::new(CpuBackend))
+}
+
+/// Runs the decode thread's per-frame work with the decode on `backend` for `duration` (at
+/// least three windows). A backend that does not time its stages reports the whole decode as
+/// "solve (phasors)".
+pub fn run_with(
+    inputs: &BenchInputs,
+    duration: Duration,
+    backend: Box<dyn DecodeBackend>,
+) -> Result<BenchReport, BenchError> {
     let seconds = duration.as_secs_f64();
     if !(seconds.is_finite() && seconds > 0.0) {
         return Err(BenchError::BadDuration(seconds));
@@ -146,7 +161,8 @@ pub fn run_cpu(inputs: &BenchInputs, duration: Duration) -> Result<BenchReport, 
         rig.sequence.clone(),
         rig.config.cross_talk,
         DecodeParams::default(),
-    )?;
+    )?
+    .with_backend(backend);
     let mut cloud = PointCloud::default();
     let mut display_image = Frame::empty();
     let mut display_coordinate: Vec<f32> = Vec::new();
@@ -226,6 +242,7 @@ pub fn run_cpu(inputs: &BenchInputs, duration: Duration) -> Result<BenchReport, 
         height,
         windows,
         threads: rayon::current_num_threads(),
+        backend: decoder.backend_name(),
         decode_ms_median: median("decode (total)"),
         triangulate_ms_median: median("triangulate"),
         fps_sustainable: 1e3 / total,

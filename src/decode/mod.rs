@@ -14,9 +14,11 @@
 //!
 //! Rows are processed in bands in parallel with rayon; buffers are laid out row-planar
 //! (`[row][plane][x]`) so that every per-row loop runs over contiguous `f32` and vectorises.
-//! [`window::SlidingDecoder`] drives the stages over a stream of frames; [`reference`] is the
+//! [`window::SlidingDecoder`] drives a [`backend::DecodeBackend`] (these stages on the CPU, or a
+//! GPU) over a stream of frames; [`reference`] is the
 //! straightforward per-pixel solve the fast path is tested and benchmarked against.
 
+pub mod backend;
 mod connect;
 mod consistency;
 pub mod fastmath;
@@ -27,6 +29,7 @@ pub mod solver;
 pub mod unwrap;
 pub mod window;
 
+pub use backend::{CpuBackend, DecodeBackend};
 pub use solver::WindowSolver;
 pub use window::{SlidingDecoder, WindowOutcome};
 
@@ -97,6 +100,9 @@ pub enum DecodeError {
     },
     #[error("temporal unwrapping needs the unit frequency (lowest m ≤ 2), lowest here is {0}")]
     NeedsUnitFrequency(u32),
+    /// The backend (a GPU) failed; the message says what it was doing.
+    #[error("{backend}: {message}")]
+    Backend { backend: String, message: String },
 }
 
 /// How the wrapped phases are unwrapped.
@@ -335,7 +341,7 @@ pub fn decode_window<F: Borrow<Frame> + Sync>(
 }
 
 /// Checks the window against `solver` and `params`, sizes `out` and stamps its time.
-pub(crate) fn check_window<F: Borrow<Frame>>(
+pub fn check_window<F: Borrow<Frame>>(
     solver: &WindowSolver,
     frames: &[F],
     params: &DecodeParams,

@@ -10,7 +10,8 @@
 //! A result is stamped at the mean of its frames' times: in a 5 Hz, 2 mm tremor a finger moves
 //! about 0.5 mm per frame, so a stamp one frame off would be a measurable error.
 
-use super::{decode_window, DecodeError, DecodeOutput, DecodeParams, WindowSolver};
+use super::backend::{CpuBackend, DecodeBackend, Window};
+use super::{check_window, DecodeError, DecodeOutput, DecodeParams, WindowSolver};
 use crate::color::CrossTalk;
 use crate::frame::Frame;
 use crate::pattern::PatternSequence;
@@ -53,6 +54,9 @@ pub struct SlidingDecoder {
     pub spread_windows: u64,
     /// Windows decoded since creation.
     pub decoded_windows: u64,
+    backend: Box<dyn DecodeBackend>,
+    /// Frames pushed since the backend last decoded a window (at most the window length).
+    unsent_frames: usize,
 }
 
 impl SlidingDecoder {
@@ -78,6 +82,8 @@ impl SlidingDecoder {
             unsolvable_windows: 0,
             spread_windows: 0,
             decoded_windows: 0,
+            backend: Box::new(CpuBackend),
+            unsent_frames: 0,
         })
     }
 
@@ -86,6 +92,18 @@ impl SlidingDecoder {
     pub fn with_max_span(mut self, max_span_s: f64) -> Self {
         self.max_span_s = Some(max_span_s);
         self
+    }
+
+    /// Runs the decode on `backend` instead of the CPU.
+    pub fn with_backend(mut self, backend: Box<dyn DecodeBackend>) -> Self {
+        self.backend = backend;
+        self.unsent_frames = self.window_len();
+        self
+    }
+
+    /// What runs the decode.
+    pub fn backend_name(&self) -> String {
+        self.backend.name()
     }
 
     pub fn window_len(&self) -> usize {
@@ -99,6 +117,7 @@ impl SlidingDecoder {
     /// Forgets the frames seen so far (after a seek or a stream restart).
     pub fn reset(&mut self) {
         self.filled = 0;
+        self.unsent_frames = self.window_len();
     }
 
     /// The last decoded result, if any.
@@ -133,6 +152,7 @@ impl SlidingDecoder {
             self.ring.push_back(slot);
         }
         self.filled = (self.filled + 1).min(len);
+        self.unsent_frames = (self.unsent_frames + 1).min(len);
         if self.filled < len {
             return Ok(WindowOutcome::Filling {
                 have: self.filled,
@@ -181,7 +201,16 @@ impl SlidingDecoder {
         let out = self
             .output
             .get_or_insert_with(|| DecodeOutput::new(w, h, &solver));
-        decode_window(&solver, frames, &self.params, self.chebyshev_n, out)?;
+        check_window(&solver, frames, &self.params, self.chebyshev_n, out)?;
+        let window = Window {
+            solver: &solver,
+            frames,
+            new_frames: self.unsent_frames,
+            params: &self.params,
+            chebyshev_n: self.chebyshev_n,
+        };
+        self.backend.decode(&window, out)?;
+        self.unsent_frames = 0;
         self.decoded_windows += 1;
         Ok(WindowOutcome::Decoded(out))
     }

@@ -25,7 +25,7 @@ pub use metrics::{Metrics, MetricsSnapshot};
 pub use queue::{LatestSlot, StageQueue};
 
 use crate::color::CrossTalk;
-use crate::decode::{DecodeParams, SlidingDecoder};
+use crate::decode::{CpuBackend, DecodeBackend, DecodeParams, SlidingDecoder};
 use crate::device::{Camera, DeviceError};
 use crate::frame::Frame;
 use crate::pattern::PatternSequence;
@@ -172,19 +172,39 @@ pub struct Pipeline {
     config: PipelineConfig,
     threads: Vec<JoinHandle<()>>,
     camera_name: String,
+    decoder_name: String,
 }
 
 mod stages;
 
 impl Pipeline {
     /// Starts capture and decode for `camera`, which shows `sequence` through a rig of
-    /// `stereo` calibration and `cross_talk`.
+    /// `stereo` calibration and `cross_talk`; the decode runs on the CPU.
     pub fn start(
         camera: Box<dyn Camera>,
         sequence: PatternSequence,
         cross_talk: CrossTalk,
         stereo: StereoModel,
         config: PipelineConfig,
+    ) -> Result<Self, PipelineError> {
+        Self::start_with_backend(
+            camera,
+            sequence,
+            cross_talk,
+            stereo,
+            config,
+            Box::new(CpuBackend),
+        )
+    }
+
+    /// [`Pipeline::start`] with the decode on `backend` (a GPU).
+    pub fn start_with_backend(
+        camera: Box<dyn Camera>,
+        sequence: PatternSequence,
+        cross_talk: CrossTalk,
+        stereo: StereoModel,
+        config: PipelineConfig,
+        backend: Box<dyn DecodeBackend>,
     ) -> Result<Self, PipelineError> {
         let expected = (stereo.camera.width, stereo.camera.height);
         if camera.size() != expected {
@@ -198,7 +218,9 @@ impl Pipeline {
         let window = sequence.entries.len() as f64;
         let max_span_s = (window - 0.5) / camera.fps().max(1e-3);
         let decoder = SlidingDecoder::new(sequence, cross_talk, config.decode_params)?
-            .with_max_span(max_span_s);
+            .with_max_span(max_span_s)
+            .with_backend(backend);
+        let decoder_name = decoder.backend_name();
         let triangulator = Triangulator::new(stereo)?;
         let shared = Arc::new(Shared {
             stop: AtomicBool::new(false),
@@ -248,11 +270,17 @@ impl Pipeline {
             config,
             threads: vec![capture, decode],
             camera_name,
+            decoder_name,
         })
     }
 
     pub fn camera_name(&self) -> &str {
         &self.camera_name
+    }
+
+    /// What runs the decode ("CPU (2 threads)", or the GPU's name).
+    pub fn decoder_name(&self) -> &str {
+        &self.decoder_name
     }
 
     pub fn metrics(&self) -> MetricsSnapshot {

@@ -1,48 +1,54 @@
 //! The GPU decode (`shaders/decode.wgsl`) against the CPU decoder, on whatever adapter wgpu finds
-//! (Mesa's lavapipe on the CI machine, which has no GPU).
+//! (Mesa's lavapipe on the CI machine, which has no GPU): window by window through the sliding
+//! decoder (the GPU keeps frames and uploads only the new one), through the threaded pipeline,
+//! and its refusals and its fall-back to the CPU.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
-use tremorscan::decode::{decode_window, DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
+use std::time::Duration;
+use tremorscan::decode::backend::Window;
+use tremorscan::decode::{
+    check_window, DecodeBackend, DecodeOutput, DecodeParams, SlidingDecoder, UnwrapMethod,
+    WindowOutcome, WindowSolver,
+};
+use tremorscan::device::{Pacing, ReplayCamera};
 use tremorscan::frame::Frame;
+use tremorscan::pattern::{cps_gray, Axis, CpsGrayVariant};
+use tremorscan::pipeline::{DecodePolicy, Pipeline, PipelineConfig};
 use tremorscan::rig::{RigConfig, VirtualRig};
-use tremorscan_ui::gpu_decode::{GpuContext, GpuDecoder};
+use tremorscan::session::{write_session, Session};
+use tremorscan_ui::gpu_decode::{backend_for, DecoderChoice, GpuBackend, GpuContext, GpuDecoder};
 
-/// Renders frames `first..first + 3` of the paper rig at `width`×`height`, with camera noise.
-fn window(width: usize, height: usize, first: u64) -> (VirtualRig, Vec<Frame>) {
+fn rig(width: usize, height: usize) -> VirtualRig {
     let config = RigConfig::paper(width, height).unwrap();
     let seq = config.default_sequence().unwrap();
-    let rig = VirtualRig::new(config, seq).unwrap();
-    let frames = (first..first + 3)
+    VirtualRig::new(config, seq).unwrap()
+}
+
+/// Frames `first..first + count` of `rig`, with camera noise.
+fn frames(rig: &VirtualRig, first: u64, count: u64) -> Vec<Frame> {
+    (first..first + count)
         .map(|i| {
             let mut f = rig.blank_frame();
             rig.render(i, &mut f, None).unwrap();
             f
         })
-        .collect();
-    (rig, frames)
+        .collect()
 }
 
-fn compare(ctx: &GpuContext, width: usize, height: usize, first: u64) {
-    let (rig, frames) = window(width, height, first);
-    let order: Vec<usize> = frames.iter().map(|f| f.pattern_index).collect();
-    let solver = WindowSolver::new(&rig.sequence, &order, &rig.config.cross_talk).unwrap();
-    let params = DecodeParams::default();
-    let n = rig.sequence.chebyshev_n().unwrap();
-    let mut cpu = DecodeOutput::new(width, height, &solver);
-    decode_window(&solver, &frames, &params, Some(n), &mut cpu).unwrap();
-    let mut gpu = GpuDecoder::new(ctx, width, height, &solver, &params, n).unwrap();
-    let (mut coordinate, mut invalid) = (Vec::new(), Vec::new());
-    gpu.decode(
-        [&frames[0], &frames[1], &frames[2]],
-        &mut coordinate,
-        &mut invalid,
-    )
-    .unwrap();
+fn gpu_backend(rig: &VirtualRig) -> GpuBackend {
+    let ctx = GpuContext::new().unwrap();
+    eprintln!("adapter: {}", ctx.adapter);
+    GpuBackend::new(ctx, &rig.sequence, &DecodeParams::default()).unwrap()
+}
+
+/// The differences of one window's GPU result from the CPU's, asserted within bounds.
+fn compare(cpu: &DecodeOutput, gpu: &DecodeOutput) {
+    let n = cpu.width * cpu.height;
     let (mut worst, mut both, mut validity_differs) = (0f32, 0usize, 0usize);
-    for p in 0..width * height {
-        let (c, g) = (cpu.coordinate_px[p], coordinate[p]);
-        assert_eq!(g.is_nan(), invalid[p] != 0, "pixel {p}");
-        if (cpu.invalid[p] == 0) != (invalid[p] == 0) {
+    for p in 0..n {
+        let (c, g) = (cpu.coordinate_px[p], gpu.coordinate_px[p]);
+        assert_eq!(g.is_nan(), gpu.invalid[p] != 0, "pixel {p}");
+        if (cpu.invalid[p] == 0) != (gpu.invalid[p] == 0) {
             validity_differs += 1;
             continue;
         }
@@ -51,57 +57,233 @@ fn compare(ctx: &GpuContext, width: usize, height: usize, first: u64) {
             both += 1;
         }
     }
+    // Amplitude and colour come straight from the 9×9 product, the same sums in the same order
+    // on both: they differ by f32 rounding (fused multiply–adds on the GPU), a few ulps of
+    // values up to a few hundred gray levels.
+    let mut worst_level = 0f32;
+    for (a, b) in cpu
+        .amplitude
+        .iter()
+        .zip(&gpu.amplitude)
+        .chain(cpu.colour.iter().zip(&gpu.colour))
+    {
+        worst_level = worst_level.max((a - b).abs() / a.abs().max(1.0));
+    }
     eprintln!(
-        "{width}×{height}: {both} valid on both, worst difference {worst:.2e} px, \
-         validity differs on {validity_differs} of {} pixels",
-        width * height
+        "{}×{}: {both} valid on both, worst coordinate difference {worst:.2e} px, \
+         worst amplitude/colour difference {worst_level:.1e} (relative), validity differs on \
+         {validity_differs} of {n} pixels",
+        cpu.width, cpu.height
     );
     // The issue's bound. Both paths use the same polynomial atan2 and the same order of
     // operations; the differences are f32 rounding (fused multiply–adds on the GPU, the CPU's
     // blocked vertical recursion), about 1e-5 px.
     assert!(worst <= 1e-3, "worst difference {worst} px");
-    assert!(both > width * height / 4, "only {both} valid pixels");
+    assert!(
+        worst_level <= 1e-5,
+        "amplitude/colour differ by {worst_level}"
+    );
+    assert!(both > n / 4, "only {both} valid pixels");
     // Validity can only differ where a test statistic lies within rounding of its threshold:
     // a handful of pixels, not a pattern. One in 10⁴ is far above that and far below any
     // systematic difference (a wrong check would flip thousands).
     assert!(
-        validity_differs * 10_000 <= width * height,
+        validity_differs * 10_000 <= n,
         "validity differs on {validity_differs} pixels"
     );
 }
 
-#[test]
-fn gpu_decode_matches_the_cpu_decoder() {
-    let ctx = GpuContext::new().unwrap();
-    eprintln!("adapter: {}", ctx.adapter);
-    compare(&ctx, 640, 400, 0);
-    // A size that is no multiple of the workgroups, whose frames need padding to whole words,
-    // and a window starting on another pattern.
-    compare(&ctx, 333, 207, 4);
+/// Streams `count` frames from `first` through a CPU and a GPU sliding decoder; compares every
+/// window. The orders turn (0 1 2, 1 2 0, 2 0 1), and from the second window on the GPU receives
+/// only the new frame: a wrong slot or pseudo-inverse would scramble the result.
+fn compare_stream(width: usize, height: usize, first: u64, count: u64) {
+    let rig = rig(width, height);
+    let params = DecodeParams::default();
+    let new = || SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params).unwrap();
+    let mut cpu = new();
+    let mut gpu = new().with_backend(Box::new(gpu_backend(&rig)));
+    assert!(
+        gpu.backend_name().starts_with("GPU"),
+        "{}",
+        gpu.backend_name()
+    );
+    let mut windows = 0;
+    for frame in frames(&rig, first, count) {
+        let a = match cpu.push(&frame).unwrap() {
+            WindowOutcome::Decoded(out) => Some(out.clone()),
+            _ => None,
+        };
+        let b = match gpu.push(&frame).unwrap() {
+            WindowOutcome::Decoded(b) => Some(b),
+            _ => None,
+        };
+        let (a, b) = match (a, b) {
+            (Some(a), Some(b)) => (a, b),
+            (None, None) => continue,
+            _ => panic!("only one of them decoded"),
+        };
+        assert_eq!(a.time_s, b.time_s);
+        compare(&a, b);
+        windows += 1;
+    }
+    assert_eq!(windows, count - 2);
 }
 
 #[test]
-fn gpu_decoder_refuses_what_it_cannot_decode() {
+fn gpu_decode_matches_the_cpu_decoder_window_by_window() {
+    compare_stream(640, 400, 0, 6);
+    // A size that is no multiple of the workgroups, whose frames need padding to whole words,
+    // and a stream starting on another pattern.
+    compare_stream(333, 207, 4, 5);
+}
+
+#[test]
+fn a_pipeline_runs_on_the_gpu_backend() {
+    let rig = rig(320, 200);
+    let dir = std::env::temp_dir().join(format!("tremorscan-gpu-pipeline-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    write_session(&dir, rig.session_manifest(), &frames(&rig, 0, 9)).unwrap();
+    let session = Session::open(&dir).unwrap();
+    let config = PipelineConfig {
+        decode_policy: DecodePolicy::Lossless,
+        consumer_queue: 16,
+        display: false,
+        ..PipelineConfig::default()
+    };
+    let camera = ReplayCamera::new(session.clone(), Pacing::AsFastAsPossible);
+    let pipeline = Pipeline::start_with_backend(
+        Box::new(camera),
+        session.sequence().unwrap(),
+        session.cross_talk().unwrap().unwrap(),
+        session.stereo_model().unwrap(),
+        config,
+        Box::new(gpu_backend(&rig)),
+    )
+    .unwrap();
+    assert!(pipeline.decoder_name().starts_with("GPU"));
+    assert!(pipeline.wait_for_end(Duration::from_secs(60)));
+    let mut clouds = 0;
+    while let Some(cloud) = pipeline.next_for_consumer() {
+        // As the CPU pipeline's test: the hand decodes over most of the image at 320×200
+        // (95.5–95.7 % there).
+        assert!(cloud.cloud.valid_count() * 4 > 320 * 200 * 3);
+        clouds += 1;
+    }
+    let (metrics, events) = pipeline.stop_with_events();
+    assert_eq!(clouds, 7, "{events:?}");
+    assert_eq!(metrics.decoded, 7);
+    assert!(events
+        .iter()
+        .all(|e| !matches!(e, tremorscan::pipeline::PipelineEvent::DecodeFailed(_))));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_gpu_refuses_what_it_cannot_decode() {
+    let rig = rig(160, 100);
     let ctx = GpuContext::new().unwrap();
-    let (rig, frames) = window(160, 100, 0);
-    let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
     let per_pixel = DecodeParams {
         unwrap: UnwrapMethod::ChebyshevPerPixel,
         ..DecodeParams::default()
     };
-    let err = GpuDecoder::new(&ctx, 160, 100, &solver, &per_pixel, 65)
+    let err = GpuBackend::new(ctx, &rig.sequence, &per_pixel).unwrap_err();
+    assert!(err.to_string().contains("robust"), "{err}");
+    let gray = cps_gray(65, CpsGrayVariant::Full9, 912.0, Axis::Columns, 8).unwrap();
+    let err =
+        GpuBackend::new(GpuContext::new().unwrap(), &gray, &DecodeParams::default()).unwrap_err();
+    assert!(err.to_string().contains("CPS-RGB"), "{err}");
+    // `auto` never picks a software adapter; `gpu` refuses a gray sequence with the reason.
+    let (auto, _) =
+        backend_for(DecoderChoice::Auto, &rig.sequence, &DecodeParams::default()).unwrap();
+    let ctx = GpuContext::new().unwrap();
+    assert_eq!(
+        auto.name().starts_with("GPU"),
+        !ctx.is_software,
+        "{}",
+        auto.name()
+    );
+    let err = backend_for(DecoderChoice::Gpu, &gray, &DecodeParams::default())
+        .err()
+        .unwrap();
+    assert!(format!("{err:#}").contains("--decoder gpu"), "{err:#}");
+
+    let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+    let err = GpuDecoder::new(&ctx, 160, 100, &solver, &per_pixel)
         .err()
         .unwrap();
     assert!(err.to_string().contains("robust"), "{err}");
-    let mut gpu = GpuDecoder::new(&ctx, 160, 100, &solver, &DecodeParams::default(), 65).unwrap();
-    let (mut c, mut i) = (Vec::new(), Vec::new());
+    let params = DecodeParams::default();
+    let mut gpu = GpuDecoder::new(&ctx, 160, 100, &solver, &params).unwrap();
+    let window = frames(&rig, 0, 3);
+    let mut out = DecodeOutput::new(160, 100, &solver);
+    // Frames out of the solver's order.
+    let shuffled = [window[1].clone(), window[2].clone(), window[0].clone()];
     let err = gpu
-        .decode([&frames[1], &frames[2], &frames[0]], &mut c, &mut i)
+        .decode(&view(&solver, &shuffled, &params), &mut out)
         .unwrap_err();
     assert!(err.to_string().contains("expects"), "{err}");
-    let (_, small) = window(80, 64, 0);
+    // Frames of another size.
+    let small = frames(
+        &VirtualRig::new(RigConfig::paper(80, 64).unwrap(), rig.sequence.clone()).unwrap(),
+        0,
+        3,
+    );
     let err = gpu
-        .decode([&small[0], &small[1], &small[2]], &mut c, &mut i)
+        .decode(&view(&solver, &small, &params), &mut out)
         .unwrap_err();
     assert!(err.to_string().contains("80×64"), "{err}");
+}
+
+/// `n` of the paper rig's sequence.
+fn solver_n() -> Option<u32> {
+    RigConfig::paper(64, 64)
+        .unwrap()
+        .default_sequence()
+        .unwrap()
+        .chebyshev_n()
+}
+
+fn view<'a>(solver: &'a WindowSolver, frames: &'a [Frame], params: &'a DecodeParams) -> Window<'a> {
+    Window {
+        solver,
+        frames,
+        new_frames: 3,
+        params,
+        chebyshev_n: solver_n(),
+    }
+}
+
+#[test]
+fn a_failing_gpu_reports_once_and_the_decode_goes_on_on_the_cpu() {
+    let rig = rig(160, 100);
+    let params = DecodeParams::default();
+    let mut backend = gpu_backend(&rig);
+    let window = frames(&rig, 0, 3);
+    let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+    // An output of another size than the frames: the GPU decoder is set up for the output and
+    // refuses the frames, as it would fail on a lost device.
+    let mut wrong = DecodeOutput::new(80, 50, &solver);
+    let err = backend
+        .decode(&view(&solver, &window, &params), &mut wrong)
+        .unwrap_err();
+    assert!(err.to_string().contains("decoded on the CPU"), "{err}");
+    assert!(
+        backend.name().contains("after the GPU failed"),
+        "{}",
+        backend.name()
+    );
+    // The next window decodes, on the CPU, exactly as the CPU decoder does.
+    let mut out = DecodeOutput::new(160, 100, &solver);
+    check_window(&solver, &window, &params, solver_n(), &mut out).unwrap();
+    backend
+        .decode(&view(&solver, &window, &params), &mut out)
+        .unwrap();
+    let mut cpu = DecodeOutput::new(160, 100, &solver);
+    tremorscan::decode::decode_window(&solver, &window, &params, solver_n(), &mut cpu).unwrap();
+    assert_eq!(out.invalid, cpu.invalid);
+    assert!(out
+        .coordinate_px
+        .iter()
+        .zip(&cpu.coordinate_px)
+        .all(|(a, b)| a == b || (a.is_nan() && b.is_nan())));
 }

@@ -91,6 +91,7 @@ fn the_decode_shader_matches_its_rust_struct() {
     };
     use std::mem::offset_of;
     use tremorscan_ui::gpu_decode::DecodeUniform as U;
+    assert_eq!(offset("first_slot"), offset_of!(U, first_slot));
     assert_eq!(offset("freq"), offset_of!(U, freq));
     assert_eq!(offset("gain"), offset_of!(U, gain));
     assert_eq!(offset("x_max"), offset_of!(U, x_max));
