@@ -93,7 +93,7 @@ fn write_report(
             if let Some(d) = stage("decode (total)") {
                 writeln!(
                     out,
-                    "GPU ({}): decode {:.2} ms median, {:.2} ms p99 over {} windows (upload of the new frame, six stages, read-back)",
+                    "{}: decode {:.2} ms median, {:.2} ms p99 over {} windows (upload of the new frame, six stages, read-back)",
                     g.backend, d.median_ms, d.p99_ms, g.windows
                 )?;
             }

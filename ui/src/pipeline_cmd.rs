@@ -2,13 +2,17 @@
 //! live and records a trial; `replay` plays a session through capture, decode and triangulation.
 //! Both print the pipeline's metrics once a second and at the end.
 
+use crate::gpu_decode::{backend_for, DecoderChoice};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
-use tremorscan::device::{Pacing, ReplayCamera, VirtualCamera};
+use tremorscan::color::CrossTalk;
+use tremorscan::device::{Camera, Pacing, ReplayCamera, VirtualCamera};
+use tremorscan::pattern::PatternSequence;
 use tremorscan::pipeline::{DecodePolicy, Pipeline, PipelineConfig, PipelineEvent};
 use tremorscan::rig::{RigConfig, VirtualRig};
 use tremorscan::session::{Session, TrialJson};
+use tremorscan::triangulate::StereoModel;
 
 /// Prints new events; returns false if one of them is a failure.
 fn report_events(pipeline: &Pipeline) -> bool {
@@ -57,6 +61,25 @@ fn run_for(pipeline: &Pipeline, seconds: Option<f64>) -> bool {
     fine
 }
 
+/// Starts the pipeline with its decode on `decoder`, and says where the decode runs.
+fn start(
+    decoder: DecoderChoice,
+    camera: Box<dyn Camera>,
+    sequence: PatternSequence,
+    cross_talk: CrossTalk,
+    stereo: StereoModel,
+    config: PipelineConfig,
+) -> Result<Pipeline> {
+    let (backend, why_cpu) = backend_for(decoder, &sequence, &config.decode_params)?;
+    if let Some(why) = why_cpu {
+        println!("{why}");
+    }
+    let pipeline =
+        Pipeline::start_with_backend(camera, sequence, cross_talk, stereo, config, backend)?;
+    println!("decode: {}", pipeline.decoder_name());
+    Ok(pipeline)
+}
+
 #[derive(clap::Args, Debug, Clone)]
 pub struct ReplayArgs {
     /// Session folder (`cps-session/1`, see docs/formats.md).
@@ -68,6 +91,9 @@ pub struct ReplayArgs {
     /// (default: lossless, every window decoded).
     #[arg(long)]
     pub real_time: bool,
+    /// Where the decode runs: `auto` takes a hardware GPU when there is one.
+    #[arg(long, value_enum, default_value_t = DecoderChoice::Auto)]
+    pub decoder: DecoderChoice,
 }
 
 pub fn run_replay(args: &ReplayArgs) -> Result<()> {
@@ -99,7 +125,14 @@ pub fn run_replay(args: &ReplayArgs) -> Result<()> {
     };
     let camera = ReplayCamera::new(session, pacing);
     let started = Instant::now();
-    let pipeline = Pipeline::start(Box::new(camera), sequence, cross_talk, stereo, config)?;
+    let pipeline = start(
+        args.decoder,
+        Box::new(camera),
+        sequence,
+        cross_talk,
+        stereo,
+        config,
+    )?;
     let fine = run_for(&pipeline, None);
     let wall = started.elapsed().as_secs_f64();
     let fine = fine & report_events(&pipeline);
@@ -136,6 +169,9 @@ pub struct RecordArgs {
     pub condition: String,
     #[arg(long, default_value = "")]
     pub notes: String,
+    /// Where the decode runs: `auto` takes a hardware GPU when there is one.
+    #[arg(long, value_enum, default_value_t = DecoderChoice::Auto)]
+    pub decoder: DecoderChoice,
 }
 
 pub fn run_record(args: &RecordArgs) -> Result<()> {
@@ -152,7 +188,8 @@ pub fn run_record(args: &RecordArgs) -> Result<()> {
         rig.stereo_model(),
     );
     let camera = VirtualCamera::new(rig, Pacing::Recorded);
-    let pipeline = Pipeline::start(
+    let pipeline = start(
+        args.decoder,
         Box::new(camera),
         sequence,
         cross_talk,

@@ -46,22 +46,34 @@ fn record_interrupt_then_replay() {
         let f = session.load_frame(i).unwrap();
         assert_eq!(f.pattern_index, i % 3);
     }
-    let out = Command::new(env!("CARGO_BIN_EXE_tremorscan"))
-        .args(["replay", dir.to_str().unwrap()])
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(
-        stdout.contains(&format!(
-            "replayed {frames} frames into {} windows",
-            frames - 2
-        )),
-        "{stdout}"
-    );
+    // The default decoder, then the CPU and the GPU (lavapipe on the CI machine) named.
+    for (decoder, runs_on) in [
+        (None, "decode: "),
+        (Some("cpu"), "decode: CPU"),
+        (Some("gpu"), "decode: GPU"),
+    ] {
+        let mut args = vec!["replay", dir.to_str().unwrap()];
+        if let Some(d) = decoder {
+            args.extend(["--decoder", d]);
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_tremorscan"))
+            .args(&args)
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{stdout}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(stdout.contains(runs_on), "{stdout}");
+        assert!(
+            stdout.contains(&format!(
+                "replayed {frames} frames into {} windows",
+                frames - 2
+            )),
+            "{stdout}"
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

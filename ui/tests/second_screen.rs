@@ -121,6 +121,7 @@ fn start(
         manifest: rig.session_manifest(),
         projector_size: (rig.config.projector.width, rig.config.projector.height),
         exposure_s: EXPOSURE_S,
+        decoder: s.decoder,
     };
     let schedule_slot = Arc::new(Mutex::new(None));
     let camera = ScreenWatcher {

@@ -13,7 +13,18 @@ use tremorscan::decode::{CpuBackend, DecodeBackend, DecodeError, DecodeOutput, D
 use tremorscan::pattern::PatternSequence;
 
 /// Which decode backend to run.
-#[derive(clap::ValueEnum, Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(
+    clap::ValueEnum,
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
 pub enum DecoderChoice {
     /// A hardware GPU if wgpu finds one, otherwise the CPU (a software adapter such as
     /// lavapipe is slower than the CPU decoder, so it is not used).
@@ -38,7 +49,10 @@ pub fn backend_for(
     };
     match choice {
         DecoderChoice::Cpu => Ok((Box::new(CpuBackend), None)),
-        DecoderChoice::Gpu => Ok((Box::new(gpu().context("--decoder gpu")?), None)),
+        DecoderChoice::Gpu => Ok((
+            Box::new(gpu().context("the GPU decoder was asked for")?),
+            None,
+        )),
         DecoderChoice::Auto => match gpu() {
             Ok(backend) if !backend.ctx.is_software => Ok((Box::new(backend), None)),
             Ok(backend) => Ok((

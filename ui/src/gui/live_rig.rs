@@ -13,7 +13,8 @@
 
 use super::projector_screen::ProjectorScreen;
 use super::settings::Settings;
-use super::source::{live_pipeline_config, sequence_of, Source};
+use super::source::{live_pipeline_config, sequence_of, start_pipeline, Source};
+use crate::gpu_decode::DecoderChoice;
 use anyhow::{anyhow, Context, Result};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, PoisonError};
@@ -25,7 +26,6 @@ use tremorscan::device::synced_camera::{SyncMode, SyncStats, SyncedCamera};
 use tremorscan::device::Camera;
 use tremorscan::frame::Frame;
 use tremorscan::pattern::PatternSequence;
-use tremorscan::pipeline::Pipeline;
 use tremorscan::session::Manifest;
 use tremorscan::tremor::LiveTracker;
 use tremorscan::triangulate::StereoModel;
@@ -45,6 +45,8 @@ pub struct RigParts {
     /// Projector (screen) image size, pixels.
     pub projector_size: (usize, usize),
     pub exposure_s: f64,
+    /// Where the decode runs.
+    pub decoder: DecoderChoice,
 }
 
 impl RigParts {
@@ -76,6 +78,7 @@ impl RigParts {
             manifest,
             projector_size,
             exposure_s,
+            decoder: settings.decoder,
         })
     }
 }
@@ -214,7 +217,8 @@ impl LiveRig {
         );
         let stats = synced.stats();
         self.screen.show_patterns();
-        let pipeline = Pipeline::start(
+        let pipeline = start_pipeline(
+            parts.decoder,
             Box::new(synced),
             parts.sequence,
             parts.cross_talk,

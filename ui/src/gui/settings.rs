@@ -1,9 +1,10 @@
 //! Settings that persist between runs: the device, the virtual rig's image size, the pattern
-//! parameters, the unwrapping method, the trial defaults and the folders last used. Stored as
+//! parameters, the unwrapping method and where the decode runs, the trial defaults and the folders last used. Stored as
 //! JSON in `$XDG_CONFIG_HOME/tremorscan/settings.json` (or `~/.config/…`), written atomically
 //! when the app closes or a setting changes. An unreadable file is reported and replaced by
 //! defaults; it is never a reason not to start.
 
+use crate::gpu_decode::DecoderChoice;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use tremorscan::decode::UnwrapMethod;
@@ -90,6 +91,8 @@ pub struct Settings {
     /// Projector bit depth per channel.
     pub projector_bits: u32,
     pub unwrap: UnwrapChoice,
+    /// Where the decode runs: a hardware GPU when there is one (`auto`), the CPU, or the GPU.
+    pub decoder: DecoderChoice,
     /// Folder new trials are recorded into.
     pub sessions_dir: PathBuf,
     pub trial_seconds: f64,
@@ -117,6 +120,7 @@ impl Default for Settings {
             code_columns: true,
             projector_bits: 6,
             unwrap: UnwrapChoice::Robust,
+            decoder: DecoderChoice::Auto,
             sessions_dir: home().join("tremorscan-sessions"),
             trial_seconds: 10.0,
             countdown_seconds: 3.0,

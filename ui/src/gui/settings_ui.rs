@@ -4,6 +4,7 @@
 
 use super::app::TremorApp;
 use super::settings::{DeviceChoice, ProjectorKind, UnwrapChoice};
+use crate::gpu_decode::DecoderChoice;
 
 /// The device radio buttons, and the camera's own settings when it is chosen.
 fn device_choice_ui(ui: &mut egui::Ui, device: &mut DeviceChoice, replay_path: &str) {
@@ -153,6 +154,15 @@ pub fn settings_window_ui(ctx: &egui::Context, app: &mut TremorApp) {
                             "robust (neighbourhood)",
                         );
                         ui.radio_value(&mut d.unwrap, UnwrapChoice::PerPixel, "per pixel (paper)");
+                    });
+                    ui.end_row();
+                    ui.label("Decode on");
+                    ui.horizontal(|ui| {
+                        ui.radio_value(&mut d.decoder, DecoderChoice::Auto, "auto")
+                            .on_hover_text("a hardware GPU when there is one, else the CPU");
+                        ui.radio_value(&mut d.decoder, DecoderChoice::Cpu, "CPU");
+                        ui.radio_value(&mut d.decoder, DecoderChoice::Gpu, "GPU")
+                            .on_hover_text("robust unwrapping only; a software GPU is slow");
                     });
                     ui.end_row();
                     ui.label("Colour calibration");

@@ -115,8 +115,11 @@ impl TremorApp {
                         }
                     }
                 }
-                self.messages
-                    .info(format!("started {}", source.pipeline.camera_name()));
+                self.messages.info(format!(
+                    "started {}; decoding on {}",
+                    source.pipeline.camera_name(),
+                    source.pipeline.decoder_name()
+                ));
                 self.cloud_view.camera = None;
                 self.source = Some(source);
             }
@@ -298,7 +301,11 @@ impl TremorApp {
                 TrialState::Idle => None,
             };
             let device = self.source.as_ref().map_or("no device".to_string(), |s| {
-                s.pipeline.camera_name().to_string()
+                format!(
+                    "{} · decode on {}",
+                    s.pipeline.camera_name(),
+                    s.pipeline.decoder_name()
+                )
             });
             let status = Status {
                 device: &device,
