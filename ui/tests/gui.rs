@@ -7,6 +7,7 @@ mod kit;
 use egui_kittest::kittest::Queryable;
 use egui_kittest::Harness;
 use kit::{harness, harness_persisting, scratch, settings, step_until};
+use tremorscan_ui::gpu_decode::DecoderChoice;
 
 use std::time::{Duration, Instant};
 use tremorscan_ui::gui::app::TremorApp;
@@ -345,9 +346,21 @@ fn settings_apply_a_new_pattern_and_a_point_can_be_dragged() {
     h.run_steps(1);
     h.get_by_label("per pixel (paper)").click();
     h.run_steps(1);
+    h.get_by_label("CPU").click();
+    h.run_steps(1);
     h.get_by_label("Apply").click();
     h.run_steps(2);
     assert!(!h.state().settings.code_columns);
+    assert_eq!(h.state().settings.decoder, DecoderChoice::Cpu);
+    let decoder = h
+        .state()
+        .source
+        .as_ref()
+        .map(|s| s.pipeline.decoder_name().to_string());
+    assert!(
+        decoder.as_deref().is_some_and(|d| d.starts_with("CPU")),
+        "{decoder:?}"
+    );
     step_until(
         &mut h,
         Duration::from_secs(120),
