@@ -21,6 +21,8 @@ const FRAMES: u64 = 6;
 pub const MAX_SIDE: usize = 8192;
 /// Windows decoded before timing starts: the first ones allocate and fault in the buffers.
 const WARM_UP_WINDOWS: usize = 3;
+/// The stage a backend with its own clock adds: its compute, transfers excluded.
+pub const DEVICE_STAGE: &str = "device compute (GPU clock)";
 
 /// Errors of the throughput check.
 #[derive(Debug, thiserror::Error)]
@@ -68,6 +70,7 @@ pub struct BenchReport {
     /// What ran the decode.
     pub backend: String,
     /// Per stage, in pipeline order; the decode stages sum (up to timer overhead) to `decode`.
+    /// A backend with its own clock adds [`DEVICE_STAGE`] last.
     pub stages: Vec<StageStats>,
     pub decode_ms_median: f64,
     pub triangulate_ms_median: f64,
@@ -177,6 +180,8 @@ pub fn run_with(
         "decode thread (total)",
     ];
     let mut samples: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+    // The device's own compute time, from backends with a clock of their own (GPU timestamps).
+    let mut device_samples: Vec<f64> = Vec::new();
     let mut index = 0usize;
     let mut warm_up = WARM_UP_WINDOWS;
     while warm_up > 0 {
@@ -206,6 +211,7 @@ pub fn run_with(
         let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
         let decode_ms = ms(t0, t1);
         let timings = out.timings;
+        device_samples.extend(timings.device_ms);
         let row = [
             decode_ms - timings.total_ms(),
             timings.solve_ms,
@@ -225,11 +231,14 @@ pub fn run_with(
     if windows == 0 {
         return Err(BenchError::NoWindows);
     }
-    let stages: Vec<StageStats> = names
+    let mut stages: Vec<StageStats> = names
         .iter()
         .zip(&mut samples)
         .map(|(&name, series)| stage_stats(name, series))
         .collect();
+    if !device_samples.is_empty() {
+        stages.push(stage_stats(DEVICE_STAGE, &mut device_samples));
+    }
     let median = |name: &str| {
         stages
             .iter()

@@ -188,6 +188,9 @@ pub struct StageTimings {
     pub solve_ms: f64,
     pub smooth_ms: f64,
     pub unwrap_ms: f64,
+    /// Time the device itself spent on the window's compute, as it measured it (GPU timestamp
+    /// queries), when the backend has such a clock; transfers are not included.
+    pub device_ms: Option<f64>,
 }
 
 impl StageTimings {
@@ -423,5 +426,6 @@ pub(crate) fn finish_window(
         solve_ms: (solved - started).as_secs_f64() * 1e3,
         smooth_ms: (smoothed - solved).as_secs_f64() * 1e3,
         unwrap_ms: (done - smoothed).as_secs_f64() * 1e3,
+        device_ms: None,
     };
 }

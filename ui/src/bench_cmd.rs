@@ -6,7 +6,7 @@ use crate::gpu_decode::{GpuBackend, GpuContext};
 use anyhow::{Context, Result};
 use std::io::Write;
 use std::time::Duration;
-use tremorscan::bench::{prepare, run_cpu, run_with, BenchInputs, BenchReport};
+use tremorscan::bench::{prepare, run_cpu, run_with, BenchInputs, BenchReport, DEVICE_STAGE};
 use tremorscan::decode::DecodeParams;
 
 /// The camera's frame rate the check compares against.
@@ -96,6 +96,14 @@ fn write_report(
                     "{}: decode {:.2} ms median, {:.2} ms p99 over {} windows (upload of the new frame, six stages, read-back)",
                     g.backend, d.median_ms, d.p99_ms, g.windows
                 )?;
+            }
+            match stage(DEVICE_STAGE) {
+                Some(d) => writeln!(
+                    out,
+                    "GPU: compute by the GPU's clock {:.2} ms median, {:.2} ms p99 (the six stages, no transfers)",
+                    d.median_ms, d.p99_ms
+                )?,
+                None => writeln!(out, "GPU: this adapter has no timestamp queries")?,
             }
             if let Some(t) = stage("decode thread (total)") {
                 writeln!(

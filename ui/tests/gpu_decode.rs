@@ -101,6 +101,7 @@ fn compare_stream(width: usize, height: usize, first: u64, count: u64) {
     let params = DecodeParams::default();
     let new = || SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params).unwrap();
     let mut cpu = new();
+    let timestamps = GpuContext::new().unwrap().timestamps;
     let mut gpu = new().with_backend(Box::new(gpu_backend(&rig)));
     assert!(
         gpu.backend_name().starts_with("GPU"),
@@ -123,6 +124,12 @@ fn compare_stream(width: usize, height: usize, first: u64, count: u64) {
             _ => panic!("only one of them decoded"),
         };
         assert_eq!(a.time_s, b.time_s);
+        // The compute pass by the GPU's clock lies inside the whole round trip timed by the host.
+        let t = b.timings;
+        assert_eq!(t.device_ms.is_some(), timestamps);
+        if let Some(device_ms) = t.device_ms {
+            assert!(device_ms > 0.0 && device_ms <= t.solve_ms, "{t:?}");
+        }
         compare(&a, b);
         windows += 1;
     }

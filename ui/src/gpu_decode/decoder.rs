@@ -17,8 +17,18 @@ use std::time::Instant;
 use tremorscan::decode::backend::Window;
 use tremorscan::decode::{DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
 
-/// Planes of the read-back buffer: coordinate, final flags, amplitudes (3), colours (3).
+/// Planes of the read-back buffer: coordinate, final flags, amplitudes (3), colours (3); the
+/// two timestamps (16 bytes) follow them.
 const READBACK_PLANES: usize = 8;
+const TIMESTAMP_BYTES: u64 = 16;
+
+/// The query set of the compute pass's two timestamps and the buffer they resolve into.
+struct Timestamps {
+    queries: wgpu::QuerySet,
+    resolved: wgpu::Buffer,
+    /// Nanoseconds per tick.
+    period_ns: f64,
+}
 
 /// Pipelines and buffers for one image size.
 pub struct GpuDecoder {
@@ -36,6 +46,8 @@ pub struct GpuDecoder {
     work: wgpu::Buffer,
     bits: wgpu::Buffer,
     readback: wgpu::Buffer,
+    /// Timestamps at the start and end of the compute pass, where the device has them.
+    timestamps: Option<Timestamps>,
     /// One frame padded to whole words, for sizes whose frames are not.
     staging: Vec<u8>,
     /// The slot the next frame goes to; the oldest frame of a full ring is there.
@@ -130,9 +142,25 @@ impl GpuDecoder {
         let bits = buffer("bits", BIT_PLANES * n * 4, U::STORAGE | U::COPY_SRC);
         let readback = buffer(
             "readback",
-            READBACK_PLANES * n * 4,
+            READBACK_PLANES * n * 4 + TIMESTAMP_BYTES as usize,
             U::MAP_READ | U::COPY_DST,
         );
+        let timestamps = device
+            .features()
+            .contains(wgpu::Features::TIMESTAMP_QUERY)
+            .then(|| Timestamps {
+                queries: device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("decode pass"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: 2,
+                }),
+                resolved: buffer(
+                    "decode pass timestamps",
+                    TIMESTAMP_BYTES as usize,
+                    U::QUERY_RESOLVE | U::COPY_SRC,
+                ),
+                period_ns: f64::from(ctx.queue.get_timestamp_period()),
+            });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("decode"),
             entries: &[
@@ -206,6 +234,7 @@ impl GpuDecoder {
             work,
             bits,
             readback,
+            timestamps,
             staging: vec![0; frame_bytes],
             next_slot: 0,
             slots_filled: 0,
@@ -218,7 +247,8 @@ impl GpuDecoder {
     }
 
     /// Decodes `window` into `out` (sized for it): coordinate (NaN where invalid), reasons,
-    /// amplitudes, colour and the timing (the whole round trip as `solve_ms`).
+    /// amplitudes, colour and the timing (the whole round trip as `solve_ms`, the compute pass
+    /// by the GPU's clock as `device_ms` where the adapter has timestamps).
     pub fn decode(&mut self, window: &Window<'_>, out: &mut DecodeOutput) -> Result<()> {
         let started = Instant::now();
         let (w, h) = (self.width, self.height);
@@ -282,12 +312,13 @@ impl GpuDecoder {
             .write_buffer(&self.pinv, 0, bytemuck::cast_slice(&window.solver.pinv));
         self.queue.submit([self.commands()]);
         self.wait_for_readback()?;
-        self.copy_out(out)?;
+        let device_ms = self.copy_out(out)?;
         self.slots_filled = 3;
         out.timings = tremorscan::decode::StageTimings {
             solve_ms: started.elapsed().as_secs_f64() * 1e3,
             smooth_ms: 0.0,
             unwrap_ms: 0.0,
+            device_ms,
         };
         Ok(())
     }
@@ -303,7 +334,13 @@ impl GpuDecoder {
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("decode"),
-                timestamp_writes: None,
+                timestamp_writes: self.timestamps.as_ref().map(|t| {
+                    wgpu::ComputePassTimestampWrites {
+                        query_set: &t.queries,
+                        beginning_of_pass_write_index: Some(0),
+                        end_of_pass_write_index: Some(1),
+                    }
+                }),
             });
             pass.set_bind_group(0, &self.bind_group, &[]);
             for (entry, pipeline) in STAGES.iter().zip(&self.pipelines) {
@@ -329,6 +366,16 @@ impl GpuDecoder {
         copy(&mut encoder, &self.work, COORD_PLANE, 0, 1);
         copy(&mut encoder, &self.bits, FINAL_PLANE, 1, 1);
         copy(&mut encoder, &self.solved, AMP_PLANE, 2, 6);
+        if let Some(t) = &self.timestamps {
+            encoder.resolve_query_set(&t.queries, 0..2, &t.resolved, 0);
+            encoder.copy_buffer_to_buffer(
+                &t.resolved,
+                0,
+                &self.readback,
+                READBACK_PLANES as u64 * plane,
+                TIMESTAMP_BYTES,
+            );
+        }
         encoder.finish()
     }
 
@@ -349,7 +396,8 @@ impl GpuDecoder {
     }
 
     /// Pixel-planar read-back → the row-planar output; unmaps the buffer whatever happens.
-    fn copy_out(&self, out: &mut DecodeOutput) -> Result<()> {
+    /// Returns the compute pass's duration by the GPU's clock, ms, where it has timestamps.
+    fn copy_out(&self, out: &mut DecodeOutput) -> Result<Option<f64>> {
         let result = (|| {
             let view = self
                 .readback
@@ -357,8 +405,14 @@ impl GpuDecoder {
                 .context("could not read the GPU read-back buffer")?;
             let words: &[u32] = bytemuck::try_cast_slice(&view)
                 .map_err(|e| anyhow::anyhow!("GPU read-back is not word aligned: {e:?}"))?;
-            unpack(words, self.width, out);
-            Ok(())
+            let (planes, stamps) = words.split_at(READBACK_PLANES * self.width * self.height);
+            unpack(planes, self.width, out);
+            Ok(self.timestamps.as_ref().and_then(|t| {
+                let tick =
+                    |i: usize| u64::from(stamps[2 * i]) | (u64::from(stamps[2 * i + 1]) << 32);
+                let ticks = tick(1).checked_sub(tick(0))?;
+                Some(ticks as f64 * t.period_ns * 1e-6)
+            }))
         })();
         self.readback.unmap();
         result

@@ -63,6 +63,8 @@ pub struct GpuContext {
     /// The adapter is a CPU implementation (lavapipe, llvmpipe, WARP): slower than the CPU
     /// decoder, good for tests only.
     pub is_software: bool,
+    /// The device has timestamp queries: the decoder times its compute pass by the GPU's clock.
+    pub timestamps: bool,
 }
 
 impl GpuContext {
@@ -78,9 +80,12 @@ impl GpuContext {
         }))
         .context("no GPU adapter (install a Vulkan driver, e.g. Mesa's lavapipe)")?;
         let info = adapter.get_info();
+        // Timestamps let the bench report the GPU's own compute time, apart from transfers.
+        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
         let (device, queue) = block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("tremorscan decode"),
             required_limits: adapter.limits(),
+            required_features: features,
             ..Default::default()
         }))
         .with_context(|| format!("could not open {}", info.name))?;
@@ -89,6 +94,7 @@ impl GpuContext {
             queue,
             adapter: format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type),
             is_software: info.device_type == wgpu::DeviceType::Cpu,
+            timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
         })
     }
 }
