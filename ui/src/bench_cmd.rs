@@ -103,7 +103,10 @@ fn write_report(
                     "GPU: compute by the GPU's clock {:.2} ms median, {:.2} ms p99 (the six stages, no transfers)",
                     d.median_ms, d.p99_ms
                 )?,
-                None => writeln!(out, "GPU: this adapter has no timestamp queries")?,
+                None => writeln!(
+                    out,
+                    "GPU: no compute time by the GPU's clock (a software adapter, or no timestamp queries)"
+                )?,
             }
             if let Some(t) = stage("decode thread (total)") {
                 writeln!(

@@ -16,7 +16,9 @@ use tremorscan::pattern::{cps_gray, Axis, CpsGrayVariant};
 use tremorscan::pipeline::{DecodePolicy, Pipeline, PipelineConfig};
 use tremorscan::rig::{RigConfig, VirtualRig};
 use tremorscan::session::{write_session, Session};
-use tremorscan_ui::gpu_decode::{backend_for, DecoderChoice, GpuBackend, GpuContext, GpuDecoder};
+use tremorscan_ui::gpu_decode::{
+    backend_for, DecoderChoice, GpuBackend, GpuContext, GpuDecoder, TimestampUse,
+};
 
 fn rig(width: usize, height: usize) -> VirtualRig {
     let config = RigConfig::paper(width, height).unwrap();
@@ -101,8 +103,11 @@ fn compare_stream(width: usize, height: usize, first: u64, count: u64) {
     let params = DecodeParams::default();
     let new = || SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params).unwrap();
     let mut cpu = new();
-    let timestamps = GpuContext::new().unwrap().timestamps;
-    let mut gpu = new().with_backend(Box::new(gpu_backend(&rig)));
+    // Timestamps wherever the adapter has them (lavapipe does), so their read-out is tested too.
+    let ctx = GpuContext::open(TimestampUse::Always).unwrap();
+    let timestamps = ctx.timestamps;
+    let backend = GpuBackend::new(ctx, &rig.sequence, &params).unwrap();
+    let mut gpu = new().with_backend(Box::new(backend));
     assert!(
         gpu.backend_name().starts_with("GPU"),
         "{}",
