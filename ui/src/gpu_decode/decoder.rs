@@ -12,6 +12,7 @@ use super::{
     SOLVED_PLANES, STAGES, WORK_PLANES,
 };
 use anyhow::{bail, ensure, Context, Result};
+use rayon::prelude::*;
 use std::sync::mpsc;
 use std::time::Instant;
 use tremorscan::decode::backend::Window;
@@ -419,32 +420,46 @@ impl GpuDecoder {
     }
 }
 
-/// Copies the eight read-back planes (pixel-planar, as words) into `out`.
+/// Copies the eight read-back planes (pixel-planar, as words) into `out`, rows in parallel
+/// (5.6 ms on one core at 1920×1200 on the development machine: the host's largest share of a
+/// GPU window after the transfers).
 fn unpack(words: &[u32], w: usize, out: &mut DecodeOutput) {
     let n = out.width * out.height;
     let (coords, rest) = words.split_at(n);
     let (flags, rest) = rest.split_at(n);
-    for ((coordinate, reason), (&c, &f)) in out
-        .coordinate_px
-        .iter_mut()
-        .zip(out.invalid.iter_mut())
-        .zip(coords.iter().zip(flags))
-    {
-        *reason = f as u8;
-        *coordinate = if f == 0 { f32::from_bits(c) } else { f32::NAN };
-    }
     let plane = |p: usize| &rest[p * n..(p + 1) * n];
-    for y in 0..out.height {
-        for f in 0..3 {
-            let dst = (y * 3 + f) * w;
-            let src = &plane(f)[y * w..(y + 1) * w];
-            for (d, &s) in out.amplitude[dst..dst + w].iter_mut().zip(src) {
-                *d = f32::from_bits(s);
+    let (amp, colour) = (
+        [plane(0), plane(1), plane(2)],
+        [plane(3), plane(4), plane(5)],
+    );
+    out.coordinate_px
+        .par_chunks_mut(w)
+        .zip(out.invalid.par_chunks_mut(w))
+        .zip(out.amplitude.par_chunks_mut(3 * w))
+        .zip(out.colour.par_chunks_mut(3 * w))
+        .enumerate()
+        .for_each(|(y, (((coordinate, reason), amp_row), colour_row))| {
+            let span = y * w..(y + 1) * w;
+            for ((c, r), (&word, &f)) in coordinate
+                .iter_mut()
+                .zip(reason.iter_mut())
+                .zip(coords[span.clone()].iter().zip(&flags[span.clone()]))
+            {
+                *r = f as u8;
+                *c = if f == 0 {
+                    f32::from_bits(word)
+                } else {
+                    f32::NAN
+                };
             }
-            let src = &plane(3 + f)[y * w..(y + 1) * w];
-            for (d, &s) in out.colour[dst..dst + w].iter_mut().zip(src) {
-                *d = f32::from_bits(s);
+            for f in 0..3 {
+                let dst = f * w..(f + 1) * w;
+                for (d, &s) in amp_row[dst.clone()].iter_mut().zip(&amp[f][span.clone()]) {
+                    *d = f32::from_bits(s);
+                }
+                for (d, &s) in colour_row[dst].iter_mut().zip(&colour[f][span.clone()]) {
+                    *d = f32::from_bits(s);
+                }
             }
-        }
-    }
+        });
 }
