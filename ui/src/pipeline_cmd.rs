@@ -2,7 +2,7 @@
 //! live and records a trial; `replay` plays a session through capture, decode and triangulation.
 //! Both print the pipeline's metrics once a second and at the end.
 
-use crate::gpu_decode::{backend_for, DecoderChoice};
+use crate::gpu_decode::{start_pipeline, DecoderChoice};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -70,12 +70,11 @@ fn start(
     stereo: StereoModel,
     config: PipelineConfig,
 ) -> Result<Pipeline> {
-    let (backend, why_cpu) = backend_for(decoder, &sequence, &config.decode_params)?;
+    let (pipeline, why_cpu) =
+        start_pipeline(decoder, camera, sequence, cross_talk, stereo, config)?;
     if let Some(why) = why_cpu {
         println!("{why}");
     }
-    let pipeline =
-        Pipeline::start_with_backend(camera, sequence, cross_talk, stereo, config, backend)?;
     println!("decode: {}", pipeline.decoder_name());
     Ok(pipeline)
 }

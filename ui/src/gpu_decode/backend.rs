@@ -8,9 +8,13 @@
 use super::decoder::unsupported;
 use super::{GpuContext, GpuDecoder};
 use anyhow::{Context, Result};
+use tremorscan::color::CrossTalk;
 use tremorscan::decode::backend::Window;
 use tremorscan::decode::{CpuBackend, DecodeBackend, DecodeError, DecodeOutput, DecodeParams};
+use tremorscan::device::Camera;
 use tremorscan::pattern::PatternSequence;
+use tremorscan::pipeline::{Pipeline, PipelineConfig};
+use tremorscan::triangulate::StereoModel;
 
 /// Which decode backend to run.
 #[derive(
@@ -68,6 +72,22 @@ pub fn backend_for(
             )),
         },
     }
+}
+
+/// Starts a pipeline with its decode on `decoder`; also returns why `auto` chose the CPU, if it
+/// did.
+pub fn start_pipeline(
+    decoder: DecoderChoice,
+    camera: Box<dyn Camera>,
+    sequence: PatternSequence,
+    cross_talk: CrossTalk,
+    stereo: StereoModel,
+    config: PipelineConfig,
+) -> Result<(Pipeline, Option<String>)> {
+    let (backend, why_cpu) = backend_for(decoder, &sequence, &config.decode_params)?;
+    let pipeline =
+        Pipeline::start_with_backend(camera, sequence, cross_talk, stereo, config, backend)?;
+    Ok((pipeline, why_cpu))
 }
 
 /// Decodes CPS-RGB windows with the robust unwrap on a GPU.

@@ -13,7 +13,7 @@ mod backend;
 mod decoder;
 mod params;
 
-pub use backend::{backend_for, DecoderChoice, GpuBackend};
+pub use backend::{backend_for, start_pipeline, DecoderChoice, GpuBackend};
 pub use decoder::GpuDecoder;
 pub use params::DecodeUniform;
 

@@ -13,8 +13,8 @@
 
 use super::projector_screen::ProjectorScreen;
 use super::settings::Settings;
-use super::source::{live_pipeline_config, sequence_of, start_pipeline, Source};
-use crate::gpu_decode::DecoderChoice;
+use super::source::{live_pipeline_config, sequence_of, Source};
+use crate::gpu_decode::{start_pipeline, DecoderChoice};
 use anyhow::{anyhow, Context, Result};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, PoisonError};
@@ -217,7 +217,7 @@ impl LiveRig {
         );
         let stats = synced.stats();
         self.screen.show_patterns();
-        let pipeline = start_pipeline(
+        let (pipeline, _) = start_pipeline(
             parts.decoder,
             Box::new(synced),
             parts.sequence,

@@ -12,19 +12,17 @@
 //! status bar.
 
 use super::settings::{DeviceChoice, Settings};
-use crate::gpu_decode::{backend_for, DecoderChoice};
+use crate::gpu_decode::start_pipeline;
 use anyhow::{Context, Result};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use tremorscan::calibrate::file::{CalibrationFile, ColourFile};
-use tremorscan::color::CrossTalk;
 use tremorscan::device::{Pacing, PlaybackCamera, PlaybackControl, VirtualCamera};
 use tremorscan::pattern::{cps_rgb, Axis, PatternSequence};
 use tremorscan::pipeline::{CloudFrame, DecodePolicy, Pipeline, PipelineConfig, PipelineEvent};
 use tremorscan::rig::{RigConfig, VirtualRig};
 use tremorscan::session::{Manifest, Session};
 use tremorscan::tremor::LiveTracker;
-use tremorscan::triangulate::StereoModel;
 
 /// Seconds of displacement history kept per control point.
 pub const HISTORY_S: f64 = 5.0;
@@ -79,21 +77,6 @@ pub fn live_pipeline_config() -> PipelineConfig {
     }
 }
 
-/// Starts a pipeline with its decode on `decoder` (auto: a hardware GPU when there is one).
-pub fn start_pipeline(
-    decoder: DecoderChoice,
-    camera: Box<dyn tremorscan::device::Camera>,
-    sequence: PatternSequence,
-    cross_talk: CrossTalk,
-    stereo: StereoModel,
-    config: PipelineConfig,
-) -> Result<Pipeline> {
-    let (backend, _why_cpu) = backend_for(decoder, &sequence, &config.decode_params)?;
-    Ok(Pipeline::start_with_backend(
-        camera, sequence, cross_talk, stereo, config, backend,
-    )?)
-}
-
 impl Source {
     /// Starts the device of `settings` with its tracker, keeping the points of `tracker`.
     pub fn start(settings: &Settings, tracker: LiveTracker) -> Result<Self> {
@@ -137,7 +120,7 @@ impl Source {
                 let fps = rig.config.fps;
                 let sequence = rig.sequence.clone();
                 let camera = VirtualCamera::new(rig, Pacing::Recorded);
-                let pipeline = start_pipeline(
+                let (pipeline, _) = start_pipeline(
                     settings.decoder,
                     Box::new(camera),
                     sequence,
@@ -159,7 +142,7 @@ impl Source {
                 let kept = opened.clone();
                 let (camera, control) = PlaybackCamera::new(opened);
                 let fps = tremorscan::device::Camera::fps(&camera);
-                let pipeline = start_pipeline(
+                let (pipeline, _) = start_pipeline(
                     settings.decoder,
                     Box::new(camera),
                     sequence,
