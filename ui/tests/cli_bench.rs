@@ -61,9 +61,11 @@ fn bench_prints_stages_and_a_parsable_last_line() {
     );
     let (decode, triangulate, fps) = (values[0].1, values[1].1, values[2].1);
     assert!(decode > 0.0 && triangulate > 0.0, "{last}");
-    // The decode thread does at least decode and triangulation per window.
+    // The decode thread does at least decode and triangulation per window, so its median time
+    // is at least each of their medians (a quantile of a pointwise larger series is larger; the
+    // median of the sums need not exceed the sum of the medians).
     assert!(
-        fps > 0.0 && fps <= 1e3 / (decode + triangulate) * 1.001,
+        fps > 0.0 && fps <= 1e3 / decode.max(triangulate) * 1.001,
         "{last}"
     );
 }

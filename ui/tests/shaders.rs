@@ -102,4 +102,16 @@ fn the_decode_shader_matches_its_rust_struct() {
             "entry point {entry}"
         );
     }
+    // The host dispatches one invocation per segment of the recursions: the same length.
+    let (_, segment) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some("SEGMENT"))
+        .expect("SEGMENT in the shader");
+    assert_eq!(
+        module.global_expressions[segment.init],
+        naga::Expression::Literal(naga::Literal::U32(
+            tremorscan_ui::gpu_decode::RECURSION_SEGMENT
+        ))
+    );
 }

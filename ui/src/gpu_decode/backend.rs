@@ -8,6 +8,7 @@
 use super::decoder::unsupported;
 use super::{GpuContext, GpuDecoder};
 use anyhow::{Context, Result};
+use std::sync::OnceLock;
 use tremorscan::color::CrossTalk;
 use tremorscan::decode::backend::Window;
 use tremorscan::decode::{CpuBackend, DecodeBackend, DecodeError, DecodeOutput, DecodeParams};
@@ -40,6 +41,11 @@ pub enum DecoderChoice {
     Gpu,
 }
 
+/// Why `auto` decodes on the CPU, once a probe found no hardware adapter: adapters do not come
+/// and go while the app runs, and each probe opens the driver (tens of milliseconds), so later
+/// pipeline starts in this process skip it.
+static NO_HARDWARE_GPU: OnceLock<String> = OnceLock::new();
+
 /// The decode backend for `choice`, for windows of `sequence` decoded with `params`, and a note
 /// on why `auto` chose the CPU (`None` when it did not).
 pub fn backend_for(
@@ -47,30 +53,36 @@ pub fn backend_for(
     sequence: &PatternSequence,
     params: &DecodeParams,
 ) -> Result<(Box<dyn DecodeBackend>, Option<String>)> {
-    let gpu = || -> Result<GpuBackend> {
-        let ctx = GpuContext::new()?;
-        GpuBackend::new(ctx, sequence, params)
-    };
     match choice {
         DecoderChoice::Cpu => Ok((Box::new(CpuBackend), None)),
-        DecoderChoice::Gpu => Ok((
-            Box::new(gpu().context("the GPU decoder was asked for")?),
-            None,
-        )),
-        DecoderChoice::Auto => match gpu() {
-            Ok(backend) if !backend.ctx.is_software => Ok((Box::new(backend), None)),
-            Ok(backend) => Ok((
-                Box::new(CpuBackend),
-                Some(format!(
+        DecoderChoice::Gpu => {
+            let backend = GpuContext::new()
+                .and_then(|ctx| GpuBackend::new(ctx, sequence, params))
+                .context("the GPU decoder was asked for")?;
+            Ok((Box::new(backend), None))
+        }
+        DecoderChoice::Auto => {
+            let cpu = |why: String| -> (Box<dyn DecodeBackend>, Option<String>) {
+                (Box::new(CpuBackend), Some(why))
+            };
+            if let Some(why) = NO_HARDWARE_GPU.get() {
+                return Ok(cpu(why.clone()));
+            }
+            let why = match GpuContext::new() {
+                Ok(ctx) if !ctx.is_software => {
+                    return Ok(match GpuBackend::new(ctx, sequence, params) {
+                        Ok(backend) => (Box::new(backend), None),
+                        Err(e) => cpu(format!("decoding on the CPU: {e:#}")),
+                    });
+                }
+                Ok(ctx) => format!(
                     "decoding on the CPU: the only GPU adapter is software ({})",
-                    backend.ctx.adapter
-                )),
-            )),
-            Err(e) => Ok((
-                Box::new(CpuBackend),
-                Some(format!("decoding on the CPU: {e:#}")),
-            )),
-        },
+                    ctx.adapter
+                ),
+                Err(e) => format!("decoding on the CPU: {e:#}"),
+            };
+            Ok(cpu(NO_HARDWARE_GPU.get_or_init(|| why).clone()))
+        }
     }
 }
 

@@ -8,8 +8,8 @@
 //! three colours; the host copies them into the row-planar [`DecodeOutput`].
 
 use super::{
-    DecodeUniform, GpuContext, AMP_PLANE, BIT_PLANES, COORD_PLANE, FINAL_PLANE, SHADER_WGSL,
-    SOLVED_PLANES, STAGES, WORK_PLANES,
+    DecodeUniform, GpuContext, AMP_PLANE, BIT_PLANES, COORD_PLANE, FINAL_PLANE, RECURSION_SEGMENT,
+    SHADER_WGSL, SOLVED_PLANES, STAGES, WORK_PLANES,
 };
 use anyhow::{bail, ensure, Context, Result};
 use rayon::prelude::*;
@@ -346,9 +346,12 @@ impl GpuDecoder {
             pass.set_bind_group(0, &self.bind_group, &[]);
             for (entry, pipeline) in STAGES.iter().zip(&self.pipelines) {
                 pass.set_pipeline(pipeline);
+                // The recursions: one invocation per segment of a row or column.
+                let segments =
+                    |lines: u32, len: u32| (lines * len.div_ceil(RECURSION_SEGMENT)).div_ceil(64);
                 match *entry {
-                    "horizontal" => pass.dispatch_workgroups(h.div_ceil(64), 1, 1),
-                    "vertical" => pass.dispatch_workgroups(w.div_ceil(64), 1, 1),
+                    "horizontal" => pass.dispatch_workgroups(segments(h, w), 1, 1),
+                    "vertical" => pass.dispatch_workgroups(segments(w, h), 1, 1),
                     _ => pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1),
                 }
             }

@@ -38,6 +38,9 @@ const SOLVED_PLANES: usize = 9;
 const WORK_PLANES: usize = 7;
 const BIT_PLANES: usize = 3;
 const COORD_PLANE: usize = 6;
+/// Pixels per invocation of the shader's recursions (`SEGMENT` there; `ui/tests/shaders.rs`
+/// checks they agree).
+pub const RECURSION_SEGMENT: u32 = 64;
 /// First plane of `solved` read back: amplitudes (3) then colour (3).
 const AMP_PLANE: usize = 3;
 const FINAL_PLANE: usize = 2;
