@@ -302,3 +302,36 @@ fn a_failing_gpu_reports_once_and_the_decode_goes_on_on_the_cpu() {
         .zip(&cpu.coordinate_px)
         .all(|(a, b)| a == b || (a.is_nan() && b.is_nan())));
 }
+
+#[test]
+fn a_device_error_is_returned_not_a_panic() {
+    let rig = rig(160, 100);
+    let ctx = GpuContext::new().unwrap();
+    let params = DecodeParams::default();
+    let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+    let mut gpu = GpuDecoder::new(&ctx, 160, 100, &solver, &params).unwrap();
+    // Mapping for reading and storage at once is invalid: wgpu reports a validation error, which
+    // its default handler would turn into a panic of the decode thread.
+    let invalid = || {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("invalid on purpose"),
+            size: 16,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        })
+    };
+    let _buffer = invalid();
+    let error = ctx.take_error();
+    assert!(error.is_some(), "no error kept");
+    assert!(ctx.take_error().is_none(), "taken twice");
+    // An error during a window comes back as that window's error.
+    let window = frames(&rig, 0, 3);
+    let mut out = DecodeOutput::new(160, 100, &solver);
+    let _buffer = invalid();
+    let err = gpu
+        .decode(&view(&solver, &window, &params), &mut out)
+        .unwrap_err();
+    assert!(err.to_string().contains("reported an error"), "{err}");
+    gpu.decode(&view(&solver, &window, &params), &mut out)
+        .unwrap();
+}

@@ -8,12 +8,12 @@
 //! three colours; the host copies them into the row-planar [`DecodeOutput`].
 
 use super::{
-    DecodeUniform, GpuContext, AMP_PLANE, BIT_PLANES, COORD_PLANE, FINAL_PLANE, RECURSION_SEGMENT,
-    SHADER_WGSL, SOLVED_PLANES, STAGES, WORK_PLANES,
+    take_error, DecodeUniform, DeviceErrors, GpuContext, AMP_PLANE, BIT_PLANES, COORD_PLANE,
+    FINAL_PLANE, RECURSION_SEGMENT, SHADER_WGSL, SOLVED_PLANES, STAGES, WORK_PLANES,
 };
 use anyhow::{bail, ensure, Context, Result};
 use rayon::prelude::*;
-use std::sync::mpsc;
+use std::sync::{mpsc, Arc};
 use std::time::Instant;
 use tremorscan::decode::backend::Window;
 use tremorscan::decode::{DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
@@ -55,6 +55,7 @@ pub struct GpuDecoder {
     next_slot: usize,
     /// Frames whose upload completed, at most 3; 0 after a failure.
     slots_filled: usize,
+    errors: DeviceErrors,
 }
 
 fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -220,7 +221,11 @@ impl GpuDecoder {
                 })
             })
             .collect();
+        if let Some(e) = take_error(&ctx.errors) {
+            bail!("the GPU could not set up the decoder for {width}×{height}: {e}");
+        }
         Ok(Self {
+            errors: Arc::clone(&ctx.errors),
             device,
             queue: ctx.queue.clone(),
             width,
@@ -314,6 +319,9 @@ impl GpuDecoder {
         self.queue.submit([self.commands()]);
         self.wait_for_readback()?;
         let device_ms = self.copy_out(out)?;
+        if let Some(e) = take_error(&self.errors) {
+            bail!("the GPU reported an error during the decode: {e}");
+        }
         self.slots_filled = 3;
         out.timings = tremorscan::decode::StageTimings {
             solve_ms: started.elapsed().as_secs_f64() * 1e3,

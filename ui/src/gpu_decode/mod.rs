@@ -19,6 +19,7 @@ pub use params::DecodeUniform;
 
 use anyhow::{Context, Result};
 use std::future::Future;
+use std::sync::{Arc, Mutex, PoisonError};
 use std::task::{Poll, Waker};
 
 /// The decode shader, validated by naga in `ui/tests/shaders.rs`.
@@ -78,6 +79,17 @@ pub struct GpuContext {
     pub is_software: bool,
     /// The device has timestamp queries: the decoder times its compute pass by the GPU's clock.
     pub timestamps: bool,
+    /// The first error the device reported outside a call's result (validation, out of
+    /// memory), kept instead of wgpu's default of panicking; see [`GpuContext::take_error`].
+    errors: DeviceErrors,
+}
+
+/// Where a device's uncaptured errors go.
+pub(crate) type DeviceErrors = Arc<Mutex<Option<String>>>;
+
+/// Takes the error `errors` holds, if any.
+pub(crate) fn take_error(errors: &DeviceErrors) -> Option<String> {
+    errors.lock().unwrap_or_else(PoisonError::into_inner).take()
 }
 
 impl GpuContext {
@@ -113,12 +125,28 @@ impl GpuContext {
             ..Default::default()
         }))
         .with_context(|| format!("could not open {}", info.name))?;
+        // wgpu's default handler panics, which would take the decode thread down; keep the
+        // error for the decoder to return with its next result instead.
+        let errors: DeviceErrors = Arc::default();
+        let slot = Arc::clone(&errors);
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            slot.lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .get_or_insert_with(|| e.to_string());
+        }));
         Ok(Self {
             device,
             queue,
             adapter: format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type),
             is_software: software,
             timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
+            errors,
         })
+    }
+
+    /// The first error the device reported since the last call (buffers it could not allocate,
+    /// invalid use), if any.
+    pub fn take_error(&self) -> Option<String> {
+        take_error(&self.errors)
     }
 }
