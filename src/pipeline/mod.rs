@@ -155,6 +155,9 @@ struct Shared {
     /// Recorders stopped by an overrun, still writing what they hold.
     draining: Mutex<Vec<JoinHandle<Result<RecordingSummary, SessionError>>>>,
     events: Mutex<Vec<PipelineEvent>>,
+    /// What runs the decode; the decode thread updates it when a backend changes (a GPU that
+    /// failed hands over to the CPU).
+    decoder_name: Mutex<String>,
 }
 
 impl Shared {
@@ -172,7 +175,6 @@ pub struct Pipeline {
     config: PipelineConfig,
     threads: Vec<JoinHandle<()>>,
     camera_name: String,
-    decoder_name: String,
 }
 
 mod stages;
@@ -220,7 +222,6 @@ impl Pipeline {
         let decoder = SlidingDecoder::new(sequence, cross_talk, config.decode_params)?
             .with_max_span(max_span_s)
             .with_backend(backend);
-        let decoder_name = decoder.backend_name();
         let triangulator = Triangulator::new(stereo)?;
         let shared = Arc::new(Shared {
             stop: AtomicBool::new(false),
@@ -231,6 +232,7 @@ impl Pipeline {
             recorder: Mutex::new(None),
             draining: Mutex::new(Vec::new()),
             events: Mutex::new(Vec::new()),
+            decoder_name: Mutex::new(decoder.backend_name()),
         });
         let decode_queue = Arc::new(StageQueue::new(config.decode_queue));
         let spawn = |name: &'static str, f: Box<dyn FnOnce() + Send>| {
@@ -270,7 +272,6 @@ impl Pipeline {
             config,
             threads: vec![capture, decode],
             camera_name,
-            decoder_name,
         })
     }
 
@@ -278,9 +279,13 @@ impl Pipeline {
         &self.camera_name
     }
 
-    /// What runs the decode ("CPU (2 threads)", or the GPU's name).
-    pub fn decoder_name(&self) -> &str {
-        &self.decoder_name
+    /// What runs the decode now ("CPU (2 threads)", or the GPU's name).
+    pub fn decoder_name(&self) -> String {
+        self.shared
+            .decoder_name
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
     }
 
     pub fn metrics(&self) -> MetricsSnapshot {

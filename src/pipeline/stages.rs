@@ -12,7 +12,7 @@ use crate::session::{Recorder, SessionError};
 use crate::triangulate::{PointCloud, Triangulator};
 use std::sync::atomic::Ordering;
 use std::sync::mpsc::Receiver;
-use std::sync::Arc;
+use std::sync::{Arc, PoisonError};
 use std::time::Instant;
 
 /// Frames kept for reuse by capture; beyond this, new ones are allocated (and later freed).
@@ -110,6 +110,10 @@ pub(super) fn decode_loop(
             Ok(outcome) => outcome,
             Err(e) => {
                 shared.event(PipelineEvent::DecodeFailed(e.to_string()));
+                *shared
+                    .decoder_name
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner) = decoder.backend_name();
                 decoder.reset();
                 continue;
             }

@@ -310,28 +310,86 @@ fn a_device_error_is_returned_not_a_panic() {
     let params = DecodeParams::default();
     let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
     let mut gpu = GpuDecoder::new(&ctx, 160, 100, &solver, &params).unwrap();
-    // Mapping for reading and storage at once is invalid: wgpu reports a validation error, which
-    // its default handler would turn into a panic of the decode thread.
-    let invalid = || {
-        ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("invalid on purpose"),
-            size: 16,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        })
-    };
-    let _buffer = invalid();
+    let _buffer = invalid_buffer(&ctx);
     let error = ctx.take_error();
     assert!(error.is_some(), "no error kept");
     assert!(ctx.take_error().is_none(), "taken twice");
     // An error during a window comes back as that window's error.
     let window = frames(&rig, 0, 3);
     let mut out = DecodeOutput::new(160, 100, &solver);
-    let _buffer = invalid();
+    let _buffer = invalid_buffer(&ctx);
     let err = gpu
         .decode(&view(&solver, &window, &params), &mut out)
         .unwrap_err();
     assert!(err.to_string().contains("reported an error"), "{err}");
     gpu.decode(&view(&solver, &window, &params), &mut out)
         .unwrap();
+}
+
+/// A buffer mapped for reading and used as storage at once: invalid, so the device reports a
+/// validation error, which wgpu's default handler would turn into a panic of the decode thread.
+fn invalid_buffer(ctx: &GpuContext) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("invalid on purpose"),
+        size: 16,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    })
+}
+
+#[test]
+fn a_pipeline_whose_gpu_fails_goes_on_on_the_cpu_and_says_so() {
+    let rig = rig(320, 200);
+    let dir = std::env::temp_dir().join(format!("tremorscan-gpu-fails-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    write_session(&dir, rig.session_manifest(), &frames(&rig, 0, 9)).unwrap();
+    let session = Session::open(&dir).unwrap();
+    // The device reports an error before the decoder is set up: the first window fails.
+    let ctx = GpuContext::new().unwrap();
+    let _buffer = invalid_buffer(&ctx);
+    let backend = GpuBackend::new(ctx, &rig.sequence, &DecodeParams::default()).unwrap();
+    let config = PipelineConfig {
+        decode_policy: DecodePolicy::Lossless,
+        consumer_queue: 16,
+        display: false,
+        ..PipelineConfig::default()
+    };
+    let pipeline = Pipeline::start_with_backend(
+        Box::new(ReplayCamera::new(session.clone(), Pacing::AsFastAsPossible)),
+        session.sequence().unwrap(),
+        session.cross_talk().unwrap().unwrap(),
+        session.stereo_model().unwrap(),
+        config,
+        Box::new(backend),
+    )
+    .unwrap();
+    assert!(pipeline.wait_for_end(Duration::from_secs(60)));
+    let mut clouds = 0;
+    while let Some(cloud) = pipeline.next_for_consumer() {
+        assert!(cloud.cloud.valid_count() * 4 > 320 * 200 * 3);
+        clouds += 1;
+    }
+    let name = pipeline.decoder_name();
+    assert!(
+        name.starts_with("CPU") && name.contains("after the GPU failed"),
+        "{name}"
+    );
+    let (_, events) = pipeline.stop_with_events();
+    let failures: Vec<_> = events
+        .iter()
+        .filter_map(|e| match e {
+            tremorscan::pipeline::PipelineEvent::DecodeFailed(m) => Some(m),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(failures.len(), 1, "{events:?}");
+    assert!(
+        failures[0].contains("decoded on the CPU"),
+        "{}",
+        failures[0]
+    );
+    // Windows end at frames 2–8. The first fails; the pipeline then starts a fresh window
+    // (frames 3–5), so frames 5–8 give the 4 clouds, decoded on the CPU.
+    assert_eq!(clouds, 4);
+    let _ = std::fs::remove_dir_all(&dir);
 }
