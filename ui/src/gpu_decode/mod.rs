@@ -62,7 +62,8 @@ fn block_on<F: Future>(future: F) -> F::Output {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TimestampUse {
     /// On hardware adapters. Lavapipe has timestamp queries, but a pass that writes them takes
-    /// about half as long again there (measured: 650–680 ms instead of 410–450 at 1920×1200).
+    /// about half as long again there (measured: 672–708 ms a window instead of 412–454 at
+    /// 1920×1200).
     HardwareOnly,
     /// Wherever the adapter has them (tests of the timing itself).
     Always,
