@@ -196,8 +196,6 @@ fn opencv_xml_imports_with_other_names() {
 }
 
 /// A fresh, existing scratch folder.
-fn scratch(name: &str) -> std::path::PathBuf {
-    let dir = common::scratch(&format!("calfile-{name}"));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> common::Scratch {
+    common::scratch_dir(&format!("calfile-{name}"))
 }

@@ -2,23 +2,17 @@
 //! refused with an error that names the field or file.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
+mod common;
+
 use serde_json::{json, Value};
-use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use tremorscan::frame::Frame;
 use tremorscan::pattern::{cps_rgb, Axis, PatternEntry};
 use tremorscan::session::frames::write_png;
 use tremorscan::session::{Session, SessionEntry, SessionError};
 
-/// A fresh empty folder under the system's temporary directory.
-fn scratch(name: &str) -> PathBuf {
-    static COUNT: AtomicUsize = AtomicUsize::new(0);
-    let dir = std::env::temp_dir().join(format!(
-        "tremorscan-session-{}-{name}-{}",
-        std::process::id(),
-        COUNT.fetch_add(1, Ordering::Relaxed)
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
+/// A fresh session folder with an empty `frames/` folder.
+fn scratch(name: &str) -> common::Scratch {
+    let dir = common::scratch_dir(name);
     std::fs::create_dir_all(dir.join("frames")).unwrap();
     dir
 }
@@ -54,7 +48,7 @@ fn frame(width: usize, height: usize, channels: usize, seed: u8) -> Frame {
 }
 
 /// Writes `manifest` and three 16×10 RGB frames; returns the folder.
-fn session_with(name: &str, manifest: &Value) -> PathBuf {
+fn session_with(name: &str, manifest: &Value) -> common::Scratch {
     let dir = scratch(name);
     for i in 0..3 {
         write_png(

@@ -1,6 +1,7 @@
 //! Shared helpers of the integration tests: render a window with the virtual rig and decode it.
 #![allow(
     dead_code,
+    unused_imports,
     reason = "each test binary uses a different subset of the helpers"
 )]
 
@@ -57,13 +58,8 @@ pub fn checks_off(mut params: DecodeParams) -> DecodeParams {
     params
 }
 
-/// A fresh path under the system's temporary folder, unique to this test process and `name`
-/// (anything left there by an earlier run is removed; the folder itself is not created).
-pub fn scratch(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("tremorscan-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
+mod scratch;
+pub use scratch::{scratch, scratch_dir, Scratch};
 
 /// The paper rig at `width`×`height` with the trembling hand and its default sequence.
 pub fn rig(width: usize, height: usize) -> VirtualRig {

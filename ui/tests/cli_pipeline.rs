@@ -2,14 +2,15 @@
 //! it left: every complete frame is there.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
+mod common;
+
 use std::process::Command;
 use std::time::{Duration, Instant};
 use tremorscan::session::Session;
 
 #[test]
 fn record_interrupt_then_replay() {
-    let dir = std::env::temp_dir().join(format!("tremorscan-cli-rec-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = common::scratch("rec");
     let mut child = Command::new(env!("CARGO_BIN_EXE_tremorscan"))
         .args(["record", "--out", dir.to_str().unwrap(), "--seconds", "120"])
         .args([

@@ -1,13 +1,14 @@
 //! `track` and `analyze` end to end on a simulated trembling hand.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
+mod common;
+
 use std::process::Command;
 use tremorscan::rig::{RigConfig, Scene};
 
 #[test]
 fn track_and_analyze_a_simulated_tremor() {
-    let dir = std::env::temp_dir().join(format!("tremorscan-cli-tremor-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = common::scratch("tremor");
     let run = |args: &[&str]| {
         let out = Command::new(env!("CARGO_BIN_EXE_tremorscan"))
             .args(args)

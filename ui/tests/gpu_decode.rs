@@ -4,6 +4,8 @@
 //! and its refusals and its fall-back to the CPU.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
+mod common;
+
 use std::time::Duration;
 use tremorscan::decode::backend::Window;
 use tremorscan::decode::{
@@ -152,8 +154,7 @@ fn gpu_decode_matches_the_cpu_decoder_window_by_window() {
 #[test]
 fn a_pipeline_runs_on_the_gpu_backend() {
     let rig = rig(320, 200);
-    let dir = std::env::temp_dir().join(format!("tremorscan-gpu-pipeline-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = common::scratch("gpu-pipeline");
     write_session(&dir, rig.session_manifest(), &frames(&rig, 0, 9)).unwrap();
     let session = Session::open(&dir).unwrap();
     let config = PipelineConfig {
@@ -340,8 +341,7 @@ fn invalid_buffer(ctx: &GpuContext) -> wgpu::Buffer {
 #[test]
 fn a_pipeline_whose_gpu_fails_goes_on_on_the_cpu_and_says_so() {
     let rig = rig(320, 200);
-    let dir = std::env::temp_dir().join(format!("tremorscan-gpu-fails-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = common::scratch("gpu-fails");
     write_session(&dir, rig.session_manifest(), &frames(&rig, 0, 9)).unwrap();
     let session = Session::open(&dir).unwrap();
     // The device reports an error before the decoder is set up: the first window fails.

@@ -1,10 +1,11 @@
 //! Shared helpers of the command-line tests: run the binary, scratch folders.
 #![allow(
     dead_code,
+    unused_imports,
     reason = "each test binary uses a different subset of the helpers"
 )]
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 /// Runs `tremorscan` with `args` and returns what it did.
@@ -15,13 +16,9 @@ pub fn tremorscan(args: &[&str]) -> Output {
         .unwrap()
 }
 
-/// A fresh path under the system's temporary folder, unique to this test process and `name`
-/// (anything left there by an earlier run is removed; the folder itself is not created).
-pub fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tremorscan-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
+#[path = "../../../tests/common/scratch.rs"]
+mod scratch;
+pub use scratch::{scratch, scratch_dir, Scratch};
 
 pub fn s(p: &Path) -> &str {
     p.to_str().unwrap()

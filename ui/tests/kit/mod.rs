@@ -12,11 +12,13 @@ use tremorscan_ui::gui::app::TremorApp;
 use tremorscan_ui::gui::cloud_view::install_renderer;
 use tremorscan_ui::gui::settings::Settings;
 
-pub fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tremorscan-gui-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    dir
+#[path = "../../../tests/common/scratch.rs"]
+mod scratch_folder;
+pub use scratch_folder::Scratch;
+
+/// A fresh, created scratch folder for one GUI test.
+pub fn scratch(name: &str) -> Scratch {
+    scratch_folder::scratch_dir(&format!("gui-{name}"))
 }
 
 pub fn settings(dir: &std::path::Path) -> Settings {
