@@ -155,8 +155,13 @@ fn streaming_numbers_times_and_cycles_patterns_and_a_bayer_stream_is_demosaiced(
         Ok(_) => panic!("opened a camera in use"),
     }
     let mut stamps = Vec::new();
+    // Counted after the first whole frame: the frame the camera is sending when the stream
+    // starts can arrive without its first packets (seen here as block 65401, the fake camera's
+    // first, in about one run of twenty), and is rightly counted as incomplete.
+    let mut lost_at_start = None;
     for _ in 0..30 {
         let k = grab_ok(&mut camera, &mut frame);
+        lost_at_start.get_or_insert(camera.incomplete_buffers());
         assert_eq!(frame.pattern_index, ((k + 1) % 3) as usize);
         if let Some(&(k0, t0)) = stamps.last() {
             assert!(k > k0, "frame numbers go forward");
@@ -170,8 +175,13 @@ fn streaming_numbers_times_and_cycles_patterns_and_a_bayer_stream_is_demosaiced(
     let (first, last) = (stamps[0], stamps[stamps.len() - 1]);
     let period = (last.1 - first.1) / (last.0 - first.0) as f64;
     assert!((period - 0.01).abs() < 0.001, "mean period {period} s");
-    // Loopback loses nothing.
-    assert_eq!(camera.incomplete_buffers(), 0);
+    // At most the frame in flight at the start is lost; once streaming, loopback loses nothing.
+    let lost_at_start = lost_at_start.unwrap();
+    assert!(
+        lost_at_start <= 1,
+        "{lost_at_start} frames lost at the start"
+    );
+    assert_eq!(camera.incomplete_buffers(), lost_at_start);
     // The fake camera draws a pattern, not a flat field.
     let (min, max) = frame
         .data
