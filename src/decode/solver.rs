@@ -12,6 +12,13 @@
 //! sin f_m x)` for every distinct frequency. For gray sequences there is one camera channel and
 //! `A = 1`. Stacking all frames gives `c = M·u`; [`WindowSolver`] keeps the pseudo-inverse `M⁺` in
 //! f32 so that each pixel costs one small matrix–vector product and no factorisation.
+//!
+//! CPS-RGB windows have more structure: three frames, every channel of frame `k` shifted by the
+//! same `θ_k`, each projector channel carrying one frequency. Then
+//! `c_kj = o_j + cos θ_k·(A·U)_j − sin θ_k·(A·V)_j`: the three-step closed form of each camera
+//! channel gives `o_j`, `(A·U)_j` and `(A·V)_j`, and unmixing them gives `U` and `V`.
+//! [`FactoredSolve`] holds these two small factors of `M⁺`: 27 + 18 multiply-adds per pixel
+//! instead of 81. It is only used when its product equals `M⁺` (checked when it is built).
 
 use super::DecodeError;
 use crate::color::CrossTalk;
@@ -43,6 +50,81 @@ pub struct WindowSolver {
     /// Per frequency slot: RMS norm of the `U` and `V` rows of `M⁺`, i.e. the standard deviation
     /// of each unknown per gray level of independent camera noise.
     pub noise_gain: Vec<f32>,
+    /// `M⁺` as closed form then unmixing, for windows with that structure (CPS-RGB).
+    pub factored: Option<FactoredSolve>,
+}
+
+/// `M⁺ = unmixing · closed form` for a window of three RGB frames with one shift per frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FactoredSolve {
+    /// Per camera channel, `(o_j, (A·U)_j, (A·V)_j) = closed_form · (c_0j, c_1j, c_2j)`.
+    pub closed_form: [[f32; 3]; 3],
+    /// `A⁻¹`: `U_i = Σ_j unmix[i][j]·(A·U)_j`, the same for `V`.
+    pub unmix: [[f32; 3]; 3],
+    /// Frequency slot carried by each projector channel.
+    pub slot_of_channel: [usize; 3],
+}
+
+impl FactoredSolve {
+    /// The factors for `entries` (the window's frames) when they have the structure, and when
+    /// their product equals `pinv` (unknowns × observations, row-major).
+    fn find(
+        entries: &[&PatternEntry],
+        frequencies: &[u32],
+        cross_talk: &CrossTalk,
+        pinv: &DMatrix<f64>,
+    ) -> Option<Self> {
+        if entries.len() != 3 || frequencies.len() != 3 {
+            return None;
+        }
+        let mut slot_of_channel = [0; 3];
+        let mut shifts = [0.0; 3];
+        for (k, entry) in entries.iter().enumerate() {
+            let codes = entry.codes();
+            if codes.len() != 3 {
+                return None;
+            }
+            shifts[k] = codes[0].shift_rad;
+            for (i, code) in codes.iter().enumerate() {
+                let slot = frequencies.iter().position(|&m| m == code.m)?;
+                if (k > 0 && slot != slot_of_channel[i]) || code.shift_rad != shifts[k] {
+                    return None;
+                }
+                slot_of_channel[i] = slot;
+            }
+        }
+        // Frame k's sample of one channel: o + cos θ_k·X − sin θ_k·Y.
+        let basis = nalgebra::Matrix3::from_fn(|k, col| match col {
+            0 => 1.0,
+            1 => shifts[k].cos(),
+            _ => -shifts[k].sin(),
+        });
+        let closed_form = basis.try_inverse()?;
+        let unmix = cross_talk.a.try_inverse()?;
+        // The product, unknowns × observations (observation k·3 + j), against M⁺.
+        let mut product = DMatrix::<f64>::zeros(9, 9);
+        for k in 0..3 {
+            for j in 0..3 {
+                product[(j, k * 3 + j)] = closed_form[(0, k)];
+                for (i, &slot) in slot_of_channel.iter().enumerate() {
+                    product[(3 + 2 * slot, k * 3 + j)] = unmix[(i, j)] * closed_form[(1, k)];
+                    product[(4 + 2 * slot, k * 3 + j)] = unmix[(i, j)] * closed_form[(2, k)];
+                }
+            }
+        }
+        let scale = pinv.amax();
+        if (product - pinv).amax() > 1e-9 * scale {
+            return None;
+        }
+        let to_f32 = |m: &nalgebra::Matrix3<f64>| {
+            std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)] as f32))
+        };
+        Some(Self {
+            closed_form: to_f32(&closed_form),
+            unmix: to_f32(&unmix),
+            slot_of_channel,
+        })
+    }
 }
 
 impl WindowSolver {
@@ -133,6 +215,11 @@ impl WindowSolver {
                 ((row_norm2(u) + row_norm2(u + 1)) / 2.0).sqrt() as f32
             })
             .collect();
+        let factored = if channels == 3 && observations == unknowns {
+            FactoredSolve::find(&entries, &frequencies, cross_talk, &pinv)
+        } else {
+            None
+        };
         let design_rows = (0..observations)
             .flat_map(|r| (0..unknowns).map(move |c| (r, c)))
             .map(|rc| design[rc])
@@ -151,6 +238,7 @@ impl WindowSolver {
             observations,
             unknowns,
             conditioning,
+            factored,
         })
     }
 
