@@ -3,8 +3,10 @@
 //!
 //! Each band of rows is processed in column chunks of [`CHUNK_PX`] pixels, so that the kernel's
 //! scratch planes stay in the L1 cache: a chunk unpacks its observations into planar `f32`
-//! rows, multiplies them by `M⁺` plane by plane (contiguous loops that vectorise; the flags too
-//! are computed in `f32` lanes), then derives per pixel:
+//! rows, multiplies them by `M⁺` plane by plane, or for CPS-RGB windows applies its two factors
+//! ([`super::solver::FactoredSolve`]: closed form per camera channel, then unmixing), in
+//! contiguous loops that vectorise (the flags too are computed in `f32` lanes), then derives per
+//! pixel:
 //!
 //! * `phase_f = atan2(V_f, U_f)` in `[0, 2π)` and `amplitude_f = |U_f + iV_f|`;
 //! * for CPS, with `z_f = U_f + iV_f` (slots 0, 1, 2 = frequencies n, n−1, n−2), the unit phasor
