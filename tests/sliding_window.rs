@@ -232,3 +232,48 @@ fn after_a_reset_the_stream_may_change_size() {
     assert_eq!((w, h), (320, 200));
     assert!(valid > 320 * 200 * 9 / 10, "{valid}");
 }
+
+#[test]
+fn taking_the_coordinates_moves_them_and_the_next_window_overwrites_the_buffer() {
+    let config = RigConfig::paper(160, 100).unwrap();
+    let seq = config.default_sequence().unwrap();
+    let rig = VirtualRig::new(config, seq).unwrap();
+    let frames: Vec<Frame> = (0..5)
+        .map(|i| {
+            let mut frame = rig.blank_frame();
+            rig.render(i, &mut frame, None).unwrap();
+            frame
+        })
+        .collect();
+    // The same stream through a decoder whose coordinates are never taken.
+    let mut plain = new_decoder(&rig);
+    let mut expected: Vec<Vec<f32>> = Vec::new();
+    for frame in &frames {
+        if let WindowOutcome::Decoded(out) = plain.push(frame).unwrap() {
+            expected.push(out.coordinate_px.clone());
+        }
+    }
+    assert_eq!(expected.len(), 3);
+
+    let mut decoder = new_decoder(&rig);
+    let mut taken = Vec::new();
+    assert!(!decoder.take_coordinate(&mut taken), "nothing decoded yet");
+    assert!(taken.is_empty());
+    // A buffer of garbage: the decoder must overwrite all of it in the next window.
+    let mut buffer = vec![-7.0f32; 160 * 100];
+    let mut window = 0;
+    for frame in &frames {
+        if let WindowOutcome::Decoded(_) = decoder.push(frame).unwrap() {
+            assert!(decoder.take_coordinate(&mut buffer));
+            assert!(decoder.output().is_none(), "taken: no stale output");
+            assert!(!decoder.take_coordinate(&mut taken), "taken once only");
+            let same = buffer
+                .iter()
+                .zip(&expected[window])
+                .all(|(a, b)| a == b || (a.is_nan() && b.is_nan()));
+            assert!(same, "window {window}: the taken coordinates differ");
+            window += 1;
+        }
+    }
+    assert_eq!(window, 3);
+}

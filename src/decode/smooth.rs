@@ -160,10 +160,39 @@ struct VerticalBlock<'a> {
     decay: f32,
 }
 
-/// One step of the vertical recursion for three planes: `state = v + g·state`, with
+/// One step of the vertical recursion for three planes: `next = v + g·previous`, with
 /// `g = decay` where `links` has the DOWN bit, and `g = 0` (a fresh start) without links.
 #[inline(always)]
-fn step_rows(state: [&mut [f32]; 3], v: [&[f32]; 3], links: Option<&[u8]>, decay: f32) {
+fn step_rows(
+    next: [&mut [f32]; 3],
+    previous: [&[f32]; 3],
+    v: [&[f32]; 3],
+    links: Option<&[u8]>,
+    decay: f32,
+) {
+    let [n0, n1, n2] = next;
+    let [s0, s1, s2] = previous;
+    let [a0, a1, a2] = v;
+    match links {
+        Some(l) => {
+            for x in 0..n0.len() {
+                let g = if l[x] & DOWN != 0 { decay } else { 0.0 };
+                n0[x] = a0[x] + g * s0[x];
+                n1[x] = a1[x] + g * s1[x];
+                n2[x] = a2[x] + g * s2[x];
+            }
+        }
+        None => {
+            n0.copy_from_slice(a0);
+            n1.copy_from_slice(a1);
+            n2.copy_from_slice(a2);
+        }
+    }
+}
+
+/// [`step_rows`] with the state updated in place.
+#[inline(always)]
+fn step_state(state: [&mut [f32]; 3], v: [&[f32]; 3], links: Option<&[u8]>, decay: f32) {
     let [s0, s1, s2] = state;
     let [a0, a1, a2] = v;
     match links {
@@ -192,20 +221,34 @@ fn vertical_block(c: &VerticalBlock<'_>, planes: [&mut [f32]; 3], state: &mut [f
     let v = |plane: usize, y: usize| &c.orig[plane * c.n + y * w..plane * c.n + (y + 1) * w];
     // Link from row y to row y + 1.
     let links = |y: usize| &c.connect[y * w..(y + 1) * w];
-    // Forward: F[y] = v[y] + g(y−1→y)·F[y−1], warmed up on the halo above.
+    // Forward: F[y] = v[y] + g(y−1→y)·F[y−1], warmed up on the halo above in the state; the
+    // block's rows then recurse on each other in place, with no copy of the state.
     let warm_start = c.first.saturating_sub(VERTICAL_HALO_ROWS);
     s0.fill(0.0);
     s1.fill(0.0);
     s2.fill(0.0);
-    for y in warm_start..c.first + c.rows {
+    for y in warm_start..c.first {
         let previous = (y > warm_start).then(|| links(y - 1));
-        step_rows([s0, s1, s2], [v(0, y), v(1, y), v(2, y)], previous, c.decay);
-        if y >= c.first {
-            let r = (y - c.first) * w;
-            p0[r..r + w].copy_from_slice(s0);
-            p1[r..r + w].copy_from_slice(s1);
-            p2[r..r + w].copy_from_slice(s2);
-        }
+        step_state([s0, s1, s2], [v(0, y), v(1, y), v(2, y)], previous, c.decay);
+    }
+    for y in c.first..c.first + c.rows {
+        let links_above = (y > warm_start).then(|| links(y - 1));
+        let r = (y - c.first) * w;
+        let (above0, row0) = p0.split_at_mut(r);
+        let (above1, row1) = p1.split_at_mut(r);
+        let (above2, row2) = p2.split_at_mut(r);
+        let previous: [&[f32]; 3] = if y == c.first {
+            [s0, s1, s2]
+        } else {
+            [&above0[r - w..], &above1[r - w..], &above2[r - w..]]
+        };
+        step_rows(
+            [&mut row0[..w], &mut row1[..w], &mut row2[..w]],
+            previous,
+            [v(0, y), v(1, y), v(2, y)],
+            links_above,
+            c.decay,
+        );
     }
     // Backward: B[y] = v[y] + g(y→y+1)·B[y+1], warmed up on the halo below; adds B − v.
     let warm_end = (c.first + c.rows + VERTICAL_HALO_ROWS).min(c.h);
@@ -215,7 +258,7 @@ fn vertical_block(c: &VerticalBlock<'_>, planes: [&mut [f32]; 3], state: &mut [f
     for y in (c.first..warm_end).rev() {
         let (a0, a1, a2) = (v(0, y), v(1, y), v(2, y));
         let next = (y + 1 < warm_end).then(|| links(y));
-        step_rows([s0, s1, s2], [a0, a1, a2], next, c.decay);
+        step_state([s0, s1, s2], [a0, a1, a2], next, c.decay);
         if y < c.first + c.rows {
             let r = (y - c.first) * w;
             for x in 0..w {

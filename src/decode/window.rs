@@ -46,6 +46,9 @@ pub struct SlidingDecoder {
     /// Solvers per window order; `None` for orders that cannot be solved.
     solvers: HashMap<Vec<usize>, Option<Arc<WindowSolver>>>,
     output: Option<DecodeOutput>,
+    /// The output holds no complete window: its coordinates were moved out by
+    /// [`SlidingDecoder::take_coordinate`], or the backend failed while writing it.
+    output_stale: bool,
     order: Vec<usize>,
     max_span_s: Option<f64>,
     /// Windows that could not be solved since creation.
@@ -77,6 +80,7 @@ impl SlidingDecoder {
             filled: 0,
             solvers: HashMap::new(),
             output: None,
+            output_stale: false,
             order: Vec::with_capacity(len),
             max_span_s: None,
             unsolvable_windows: 0,
@@ -120,9 +124,29 @@ impl SlidingDecoder {
         self.unsent_frames = self.window_len();
     }
 
-    /// The last decoded result, if any.
+    /// The last decoded result, if any (none once its coordinates were taken, or after a
+    /// failed decode).
     pub fn output(&self) -> Option<&DecodeOutput> {
-        self.output.as_ref()
+        self.output.as_ref().filter(|_| !self.output_stale)
+    }
+
+    /// Moves the last window's projector coordinates into `buffer` without copying them: the
+    /// two allocations change places, and the decoder writes its next window into `buffer`'s
+    /// old one (every backend fills all of `coordinate_px`). [`Self::output`] is `None` from
+    /// then until the next decoded window. Returns false, leaving `buffer` alone, when there is
+    /// no decoded window to take from.
+    pub fn take_coordinate(&mut self, buffer: &mut Vec<f32>) -> bool {
+        let Some(out) = self.output.as_mut().filter(|_| !self.output_stale) else {
+            return false;
+        };
+        let n = out.coordinate_px.len();
+        if buffer.len() != n {
+            buffer.clear();
+            buffer.resize(n, f32::NAN);
+        }
+        std::mem::swap(&mut out.coordinate_px, buffer);
+        self.output_stale = true;
+        true
     }
 
     /// Adds `frame` and decodes the window ending with it.
@@ -209,7 +233,9 @@ impl SlidingDecoder {
             params: &self.params,
             chebyshev_n: self.chebyshev_n,
         };
+        self.output_stale = true;
         self.backend.decode(&window, out)?;
+        self.output_stale = false;
         self.unsent_frames = 0;
         self.decoded_windows += 1;
         Ok(WindowOutcome::Decoded(out))

@@ -112,9 +112,9 @@ pub struct CapturedFrame {
 #[derive(Debug, Clone)]
 pub struct CloudFrame {
     pub cloud: PointCloud,
-    /// The window's last camera frame as captured (for the live image), when the pipeline
-    /// publishes to a display; otherwise empty.
-    pub camera_image: Frame,
+    /// The window's last camera frame as captured (for the live image), shared with capture
+    /// rather than copied, when the pipeline publishes to a display; otherwise `None`.
+    pub camera: Option<Arc<CapturedFrame>>,
     /// Projector coordinate per pixel, projector px, NaN where invalid (the unwrapped phase
     /// in projector units), when publishing to a display; otherwise empty.
     pub projector_px: Vec<f32>,

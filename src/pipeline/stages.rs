@@ -131,7 +131,7 @@ pub(super) fn decode_loop(
             Some(i) => spare.swap_remove(i),
             None => Arc::new(CloudFrame {
                 cloud: PointCloud::default(),
-                camera_image: Frame::empty(),
+                camera: None,
                 projector_px: Vec::new(),
                 window_end: 0,
                 latency: Default::default(),
@@ -145,9 +145,12 @@ pub(super) fn decode_loop(
             continue;
         }
         if display {
-            // Reuses the slot's buffers: no allocation once the spare clouds exist.
-            slot.camera_image.clone_from(&item.frame);
-            slot.projector_px.clone_from(&out.coordinate_px);
+            // No copies: the captured frame is shared, and the coordinates change places with
+            // the slot's buffer from an earlier window (no allocation once the spares exist).
+            slot.camera = Some(Arc::clone(&item));
+            decoder.take_coordinate(&mut slot.projector_px);
+        } else {
+            slot.camera = None;
         }
         slot.window_end = item.sequence_number;
         let now = Instant::now();

@@ -52,7 +52,7 @@ pub fn run_bench(args: &BenchArgs) -> Result<()> {
 
 /// Runs the same per-frame work with the decode on the GPU (wgpu's preferred adapter, software
 /// ones included): upload of the new frame, the six shader stages, read-back; triangulation and
-/// the display copy stay on the CPU.
+/// the display hand-off stay on the CPU.
 fn run_gpu(inputs: &BenchInputs, duration: Duration) -> Result<BenchReport> {
     let ctx = GpuContext::new()?;
     let backend = GpuBackend::new(ctx, &inputs.rig.sequence, &DecodeParams::default())?;
@@ -111,7 +111,7 @@ fn write_report(
             if let Some(t) = stage("decode thread (total)") {
                 writeln!(
                     out,
-                    "GPU: decode thread {:.2} ms median, {:.2} ms p99 with triangulation ({:.2} ms) and display copy on the CPU: {:.1} frames/s sustainable",
+                    "GPU: decode thread {:.2} ms median, {:.2} ms p99 with triangulation ({:.2} ms) and display hand-off on the CPU: {:.1} frames/s sustainable",
                     t.median_ms, t.p99_ms, g.triangulate_ms_median, g.fps_sustainable
                 )?;
             }

@@ -26,7 +26,7 @@ fn bench_prints_stages_and_a_parsable_last_line() {
         "solve (phasors)",
         "smooth (unit phasor)",
         "triangulate",
-        "display copy",
+        "display hand-off",
     ] {
         assert!(stdout.contains(stage), "{stage} missing:\n{stdout}");
     }

@@ -4,7 +4,6 @@
 
 use egui_kittest::wgpu::{create_render_state, default_wgpu_setup, WgpuTestRenderer};
 use egui_kittest::Harness;
-use tremorscan::frame::Frame;
 use tremorscan::pipeline::CloudFrame;
 use tremorscan::tremor::LiveTracker;
 use tremorscan::triangulate::PointCloud;
@@ -39,7 +38,7 @@ fn card() -> CloudFrame {
             colour_rgb: colours,
             fringe_amplitude: vec![1.0; w * h],
         },
-        camera_image: Frame::new(0, 0, 3).expect("empty frame"),
+        camera: None,
         projector_px: Vec::new(),
         window_end: 1,
         latency: Default::default(),

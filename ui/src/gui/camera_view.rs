@@ -54,7 +54,10 @@ pub fn render_image(frame: &CloudFrame, mode: ImageMode, out: &mut Vec<Color32>)
     let valid = |i: usize| cloud.point_in_camera_mm[i][2].is_finite();
     match mode {
         ImageMode::Raw => {
-            let img = &frame.camera_image;
+            let Some(img) = frame.camera.as_ref().map(|c| &c.frame) else {
+                out.resize(n, Color32::BLACK);
+                return;
+            };
             if img.width * img.height != n {
                 out.resize(n, Color32::BLACK);
                 return;
@@ -242,7 +245,9 @@ impl CameraView {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::Arc;
     use tremorscan::frame::Frame;
+    use tremorscan::pipeline::CapturedFrame;
     use tremorscan::triangulate::PointCloud;
 
     #[test]
@@ -256,7 +261,11 @@ mod tests {
                 colour_rgb: vec![[10, 20, 30], [40, 50, 60]],
                 fringe_amplitude: vec![4.0, 0.0],
             },
-            camera_image: Frame::from_data(2, 1, 3, vec![1, 2, 3, 4, 5, 6]).expect("frame"),
+            camera: Some(Arc::new(CapturedFrame {
+                frame: Frame::from_data(2, 1, 3, vec![1, 2, 3, 4, 5, 6]).expect("frame"),
+                sequence_number: 7,
+                arrived: std::time::Instant::now(),
+            })),
             projector_px: vec![100.0, f32::NAN],
             window_end: 7,
             latency: Default::default(),
