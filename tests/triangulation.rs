@@ -187,3 +187,58 @@ fn fast_path_matches_the_exact_solution_on_every_axis() {
         eprintln!("{axis:?}: worst {worst:.2e} px equivalent");
     }
 }
+
+#[test]
+fn the_cloud_carries_each_pixels_colour_and_smallest_amplitude() {
+    use tremorscan::decode::{DecodeOutput, WindowSolver};
+    let Some(AxisCase {
+        rig,
+        triangulator,
+        truth,
+        ..
+    }) = axis_cases().into_iter().next()
+    else {
+        panic!("no axis case");
+    };
+    let (w, h) = (rig.width(), rig.height());
+    let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+    let mut decoded = DecodeOutput::new(w, h, &solver);
+    decoded.coordinate_px.clone_from(&truth.coordinate_px);
+    // Amplitudes and colours that differ per pixel, frequency and channel (row-planar: row,
+    // then plane, then x), colours also below 0 and above 255, where the bytes must clamp.
+    for (i, a) in decoded.amplitude.iter_mut().enumerate() {
+        *a = ((i * 7919) % 1000) as f32 * 0.25;
+    }
+    for (i, c) in decoded.colour.iter_mut().enumerate() {
+        *c = ((i * 104_729) % 400) as f32 - 60.5;
+    }
+    let mut cloud = PointCloud::default();
+    triangulator.triangulate(&decoded, &mut cloud).unwrap();
+    let (mut valid, mut invalid) = (0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let p = y * w + x;
+            let plane = |planes: &[f32], k: usize| planes[(y * 3 + k) * w + x];
+            let expected_colour =
+                [0, 1, 2].map(|k| plane(&decoded.colour, k).clamp(0.0, 255.0) as u8);
+            assert_eq!(cloud.colour_rgb[p], expected_colour, "pixel {p}");
+            let point = cloud.point_in_camera_mm[p];
+            if point[2].is_finite() {
+                let smallest = (0..3)
+                    .map(|k| plane(&decoded.amplitude, k))
+                    .fold(f32::INFINITY, f32::min);
+                assert_eq!(cloud.fringe_amplitude[p], smallest, "pixel {p}");
+                assert!(point.iter().all(|v| v.is_finite()), "pixel {p}: {point:?}");
+                valid += 1;
+            } else {
+                assert_eq!(cloud.fringe_amplitude[p], 0.0, "pixel {p}");
+                assert!(point.iter().all(|v| v.is_nan()), "pixel {p}: {point:?}");
+                invalid += 1;
+            }
+        }
+    }
+    assert!(
+        valid > 100_000 && invalid > 1000,
+        "{valid} valid, {invalid} invalid"
+    );
+}

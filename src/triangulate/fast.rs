@@ -224,7 +224,7 @@ pub(super) struct DecodedRow<'a> {
 }
 
 /// Triangulates one row starting at pixel `first`; `depth` is a row of scratch. Pixels whose
-/// distortion fit is missing are left NaN in `depth` and reported through `missing`.
+/// distortion fit is missing are left NaN (the caller takes the exact path for them).
 #[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
 pub(super) fn triangulate_row(
     table: &FastTable,
@@ -252,27 +252,58 @@ pub(super) fn triangulate_row(
         // NaN (invalid coordinate, missing fit) and points behind the camera fail the test.
         depth[x] = if z > 0.0 && z < f32::MAX { z } else { f32::NAN };
     }
-    let nf = input.frequencies;
-    let nc = input.channels;
-    for x in 0..w {
+    write_outputs(rx, ry, input, depth, out);
+}
+
+/// The point, smallest amplitude and colour bytes of each pixel of the row, from its depth.
+/// Inlined into [`triangulate_row`], so it is compiled for the same instruction sets.
+#[inline(always)]
+fn write_outputs(rx: &[f32], ry: &[f32], input: &DecodedRow<'_>, depth: &[f32], out: CloudRow<'_>) {
+    let w = input.coordinate.len();
+    // Points: a NaN depth (invalid) makes all three coordinates NaN, so no select is needed,
+    // and the flattened row takes the three values at stride 3 in a loop that vectorises.
+    let points = &mut out.points.as_flattened_mut()[..3 * w];
+    for (x, p) in points.chunks_exact_mut(3).enumerate() {
         let z = depth[x];
-        let valid = z.is_finite();
-        out.points[x] = if valid {
-            [rx[x] * z, ry[x] * z, z]
-        } else {
-            [f32::NAN; 3]
-        };
-        let mut amp = input.amplitude[x];
-        for f in 1..nf {
-            amp = amp.min(input.amplitude[f * w + x]);
+        p[0] = rx[x] * z;
+        p[1] = ry[x] * z;
+        p[2] = z;
+    }
+    let nf = input.frequencies;
+    let amplitudes = &mut out.amplitudes[..w];
+    let plane = |f: usize| &input.amplitude[f * w..(f + 1) * w];
+    let depth = &depth[..w];
+    #[allow(clippy::eq_op, reason = "the NaN test that vectorises")]
+    if nf == 3 {
+        let (a0, a1, a2) = (plane(0), plane(1), plane(2));
+        for x in 0..w {
+            let z = depth[x];
+            let smallest = a0[x].min(a1[x]).min(a2[x]);
+            amplitudes[x] = if z == z { smallest } else { 0.0 };
         }
-        out.amplitudes[x] = if valid { amp } else { 0.0 };
-        let gray = |ch: usize| input.colour[ch * w + x].clamp(0.0, 255.0) as u8;
-        out.colours[x] = if nc == 3 {
-            [gray(0), gray(1), gray(2)]
-        } else {
-            [gray(0); 3]
-        };
+    } else {
+        for x in 0..w {
+            let z = depth[x];
+            let smallest = (1..nf).fold(plane(0)[x], |m, f| m.min(plane(f)[x]));
+            amplitudes[x] = if z == z { smallest } else { 0.0 };
+        }
+    }
+    let nc = input.channels;
+    let gray = |ch: usize, x: usize| input.colour[ch * w + x].clamp(0.0, 255.0) as u8;
+    let colours = &mut out.colours.as_flattened_mut()[..3 * w];
+    if nc == 3 {
+        for (x, c) in colours.chunks_exact_mut(3).enumerate() {
+            c[0] = gray(0, x);
+            c[1] = gray(1, x);
+            c[2] = gray(2, x);
+        }
+    } else {
+        for (x, c) in colours.chunks_exact_mut(3).enumerate() {
+            let v = gray(0, x);
+            c[0] = v;
+            c[1] = v;
+            c[2] = v;
+        }
     }
 }
 
