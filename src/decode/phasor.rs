@@ -161,8 +161,15 @@ fn solve_row<F: Borrow<Frame>>(
     // u = M⁺ · obs: factored for CPS-RGB windows, else one unknown plane at a time. Common
     // window sizes get an unrolled kernel that reads every observation plane once per pixel and
     // writes each unknown once.
+    let nc = solver.channels;
+    let stride = row.stride;
     match &solver.factored {
-        Some(factored) => solve_factored(factored, w, obs, u),
+        Some(factored) => {
+            // The offsets go straight to the colour output.
+            let (c0, rest) = row.colour.split_at_mut(stride);
+            let (c1, c2) = rest.split_at_mut(stride);
+            solve_factored(factored, w, obs, [c0, c1, c2], u);
+        }
         None => {
             for q in 0..n_u {
                 let coeffs = &solver.pinv[q * n_obs..(q + 1) * n_obs];
@@ -185,14 +192,12 @@ fn solve_row<F: Borrow<Frame>>(
         }
     }
 
-    let nc = solver.channels;
     let nf = solver.frequencies.len();
-    let stride = row.stride;
-    for c in 0..nc {
-        row.colour[c * stride..c * stride + w].copy_from_slice(&u[c * w..(c + 1) * w]);
+    if solver.factored.is_none() {
+        for c in 0..nc {
+            row.colour[c * stride..c * stride + w].copy_from_slice(&u[c * w..(c + 1) * w]);
+        }
     }
-    row.re.fill(0.0);
-    row.im.fill(0.0);
     for f in 0..nf {
         let cu = &u[solver.cos_unknown(f) * w..(solver.cos_unknown(f) + 1) * w];
         let sv = &u[(solver.cos_unknown(f) + 1) * w..(solver.cos_unknown(f) + 2) * w];
@@ -203,7 +208,6 @@ fn solve_row<F: Borrow<Frame>>(
             amp[x] = (cu[x] * cu[x] + sv[x] * sv[x]).sqrt();
         }
     }
-    inconsistent.fill(0.0);
     if chebyshev && nf == 3 {
         let at = |f: usize, x: usize| {
             let c = solver.cos_unknown(f);
@@ -233,6 +237,11 @@ fn solve_row<F: Borrow<Frame>>(
             let bad = (tr < 0.0) | (sin2 > limit * var_over_noise);
             inconsistent[x] = f32::from(u8::from(bad));
         }
+    } else {
+        // No unit phasor and no Chebyshev check for this window.
+        row.re[..w].fill(0.0);
+        row.im[..w].fill(0.0);
+        inconsistent.fill(0.0);
     }
     let min_amplitude = params.min_amplitude;
     // The reasons as f32 sums of distinct powers of two, so this loop stays in f32 lanes and
@@ -271,11 +280,18 @@ fn solve_row<F: Borrow<Frame>>(
 }
 
 /// `u = M⁺·obs` through the factors of [`FactoredSolve`], for planes of `w` values: nine
-/// observation planes (frame k, camera channel j at plane 3k + j) in, nine unknown planes out.
-/// The observation planes of the first two frames are overwritten with the closed form's cosine
-/// and sine terms.
+/// observation planes (frame k, camera channel j at plane 3k + j) in; the three offsets (the
+/// colour) to `offsets`, the six cosine and sine unknowns to their planes 3–8 of `u` (planes
+/// 0–2 are not written). The observation planes of the first two frames are overwritten with
+/// the closed form's cosine and sine terms.
 #[inline(always)]
-fn solve_factored(factored: &FactoredSolve, w: usize, obs: &mut [f32], u: &mut [f32]) {
+fn solve_factored(
+    factored: &FactoredSolve,
+    w: usize,
+    obs: &mut [f32],
+    offsets: [&mut [f32]; 3],
+    u: &mut [f32],
+) {
     let [b0, b1, b2] = factored.closed_form;
     let (first, rest) = obs.split_at_mut(3 * w);
     let (second, third) = rest.split_at_mut(3 * w);
@@ -286,7 +302,7 @@ fn solve_factored(factored: &FactoredSolve, w: usize, obs: &mut [f32], u: &mut [
             &mut second[plane.clone()],
             &third[plane.clone()],
         );
-        let offset = &mut u[plane];
+        let offset = &mut offsets[j][..w];
         for x in 0..w {
             let (v0, v1, v2) = (s0[x], s1[x], s2[x]);
             offset[x] = b0[0] * v0 + b0[1] * v1 + b0[2] * v2;
@@ -346,7 +362,11 @@ mod tests {
                 }
                 let mut scratch = obs.clone();
                 let mut got = vec![0.0; 9 * w];
-                solve_factored(&factored, w, &mut scratch, &mut got);
+                let mut offsets = vec![0.0; 3 * w];
+                let (o0, rest) = offsets.split_at_mut(w);
+                let (o1, o2) = rest.split_at_mut(w);
+                solve_factored(&factored, w, &mut scratch, [o0, o1, o2], &mut got);
+                got[..3 * w].copy_from_slice(&offsets);
                 for (i, (g, e)) in got.iter().zip(&expected).enumerate() {
                     // Both are f32 sums of nine products (the factored one in two rounds of
                     // three, through intermediate terms of similar size): each rounds to a few
