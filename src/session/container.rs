@@ -12,10 +12,13 @@
 //! ```
 //!
 //! `codec` 1 is an LZ4 block of the interleaved 8-bit pixels (`raw_len` bytes once expanded),
-//! `codec` 0 the pixels stored as they are: a frame whose LZ4 block would not be smaller is
-//! stored (camera noise of a few gray levels leaves LZ4 nothing to find: measured ratio 1.00 on
-//! the rig's frames, see `docs/benchmarks.md`), so a record is never larger than the frame plus
-//! its header;
+//! `codec` 0 the pixels stored as they are. A frame is stored when its LZ4 block would not save
+//! a 32nd of it (camera noise of a few gray levels leaves LZ4 nothing to find: measured ratio
+//! 1.00 on the rig's frames, see `docs/benchmarks.md`), so a record is never larger than the
+//! frame plus its header. Trying costs 5–6 ms per 1920×1200 frame here, two thirds of a core at
+//! 121 FPS, so after a frame that did not compress the writer stores the next
+//! [`PROBE_INTERVAL`]` − 1` without trying, and tries again on the one after: a scene that turns
+//! compressible (dark, uniform) is compressed again within that many frames;
 //! `crc` is the CRC-32 of the header's first 44 bytes followed by the payload. A reader stops at
 //! the first record that is incomplete or whose CRC does not match, and says where.
 
@@ -27,6 +30,11 @@ const RECORD_MAGIC: &[u8; 4] = b"FRM1";
 const HEADER_LEN: usize = 48;
 const CODEC_STORED: u8 = 0;
 const CODEC_LZ4: u8 = 1;
+/// An LZ4 block is kept only if it saves at least this fraction's reciprocal of the frame: a
+/// smaller saving is not worth the decompression on every read.
+const LZ4_MIN_SAVING_DIVISOR: usize = 32;
+/// After a frame that did not compress, one frame in this many is tried again.
+pub const PROBE_INTERVAL: u32 = 16;
 
 /// Errors of the container.
 #[derive(Debug, thiserror::Error)]
@@ -51,6 +59,10 @@ pub struct ContainerWriter<W: Write> {
     frames: u64,
     bytes: u64,
     scratch: Vec<u8>,
+    /// LZ4's output, reused from frame to frame.
+    compressed: Vec<u8>,
+    /// Frames still to store without trying LZ4.
+    skip_lz4: u32,
 }
 
 impl<W: Write> ContainerWriter<W> {
@@ -63,16 +75,35 @@ impl<W: Write> ContainerWriter<W> {
             frames: 0,
             bytes: FILE_MAGIC.len() as u64,
             scratch: Vec::new(),
+            compressed: Vec::new(),
+            skip_lz4: 0,
         })
     }
 
     /// Appends one frame as a complete record (header and payload in one write).
     pub fn write_frame(&mut self, frame: &Frame) -> Result<(), ContainerError> {
-        let compressed = lz4_flex::block::compress(&frame.data);
-        let (codec, payload) = if compressed.len() < frame.data.len() {
-            (CODEC_LZ4, compressed.as_slice())
+        let raw = frame.data.as_slice();
+        let compressed_len = if self.skip_lz4 > 0 {
+            self.skip_lz4 -= 1;
+            None
         } else {
-            (CODEC_STORED, frame.data.as_slice())
+            let bound = lz4_flex::block::get_maximum_output_size(raw.len());
+            if self.compressed.len() < bound {
+                self.compressed.resize(bound, 0);
+            }
+            // An output too small cannot happen at the bound; it would store the frame.
+            let worthwhile = raw.len() - raw.len() / LZ4_MIN_SAVING_DIVISOR;
+            match lz4_flex::block::compress_into(raw, &mut self.compressed) {
+                Ok(len) if len <= worthwhile => Some(len),
+                _ => {
+                    self.skip_lz4 = PROBE_INTERVAL - 1;
+                    None
+                }
+            }
+        };
+        let (codec, payload) = match compressed_len {
+            Some(len) => (CODEC_LZ4, &self.compressed[..len]),
+            None => (CODEC_STORED, raw),
         };
         let mut record = std::mem::take(&mut self.scratch);
         record.clear();
@@ -380,6 +411,46 @@ mod tests {
         assert!(index.cut_off.is_some());
         for (i, info) in index.records.iter().enumerate() {
             assert_eq!(read_frame(&mut c, i, info).unwrap(), frame(i as u8));
+        }
+    }
+
+    #[test]
+    fn frames_that_do_not_compress_are_stored_and_compression_is_retried_later() {
+        // Pseudo-random bytes leave LZ4 nothing to find; a flat frame compresses to almost
+        // nothing.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let noise: Vec<u8> = (0..64 * 48 * 3)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 24) as u8
+            })
+            .collect();
+        let noisy = Frame::from_data(64, 48, 3, noise).unwrap();
+        let flat = Frame::from_data(64, 48, 3, vec![90; 64 * 48 * 3]).unwrap();
+        let interval = PROBE_INTERVAL as usize;
+        let mut sent = vec![flat.clone(), noisy.clone()];
+        // After the noisy frame, flat frames: the first ones are stored untried, then LZ4 is
+        // tried again and kept while it pays.
+        sent.extend(std::iter::repeat_n(flat.clone(), interval + 1));
+        let mut w = ContainerWriter::new(Vec::new()).unwrap();
+        for f in &sent {
+            w.write_frame(f).unwrap();
+        }
+        let mut c = Cursor::new(w.into_inner());
+        let index = scan(&mut c).unwrap();
+        let codecs: Vec<u8> = index.records.iter().map(|r| r.codec).collect();
+        let mut expected = vec![CODEC_LZ4, CODEC_STORED];
+        expected.extend(std::iter::repeat_n(CODEC_STORED, interval - 1));
+        expected.extend([CODEC_LZ4, CODEC_LZ4]);
+        assert_eq!(codecs, expected);
+        for (i, info) in index.records.iter().enumerate() {
+            assert_eq!(
+                read_frame(&mut c, i, info).unwrap().data,
+                sent[i].data,
+                "frame {i}"
+            );
         }
     }
 
