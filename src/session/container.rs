@@ -16,9 +16,9 @@
 //! a 32nd of it (camera noise of a few gray levels leaves LZ4 nothing to find: measured ratio
 //! 1.00 on the rig's frames, see `docs/benchmarks.md`), so a record is never larger than the
 //! frame plus its header. Trying costs 5–6 ms per 1920×1200 frame here, two thirds of a core at
-//! 121 FPS, so after a frame that did not compress the writer stores the next
-//! [`PROBE_INTERVAL`]` − 1` without trying, and tries again on the one after: a scene that turns
-//! compressible (dark, uniform) is compressed again within that many frames;
+//! 121 FPS, so after a frame that did not compress the writer stores the next 15 without trying
+//! and tries again on the 16th ([`PROBE_INTERVAL`]): a scene that turns compressible (dark,
+//! uniform) is compressed again within 16 frames;
 //! `crc` is the CRC-32 of the header's first 44 bytes followed by the payload. A reader stops at
 //! the first record that is incomplete or whose CRC does not match, and says where.
 
@@ -30,8 +30,8 @@ const RECORD_MAGIC: &[u8; 4] = b"FRM1";
 const HEADER_LEN: usize = 48;
 const CODEC_STORED: u8 = 0;
 const CODEC_LZ4: u8 = 1;
-/// An LZ4 block is kept only if it saves at least this fraction's reciprocal of the frame: a
-/// smaller saving is not worth the decompression on every read.
+/// An LZ4 block is kept only if it saves at least 1/32 of the frame: a smaller saving is not
+/// worth the decompression on every read.
 const LZ4_MIN_SAVING_DIVISOR: usize = 32;
 /// After a frame that did not compress, one frame in this many is tried again.
 pub const PROBE_INTERVAL: u32 = 16;
