@@ -2,18 +2,20 @@
 //!
 //! It renders a few frames of the virtual rig at the requested size once, then streams them, for
 //! the requested time, through exactly the work the pipeline's decode thread does per frame: the
-//! sliding-window decoder (frame into the window, then solve, smoothing, unwrapping), the
-//! triangulation and the hand-off to the display (the coordinates move out of the decoder
-//! without a copy), after a few warm-up windows. Each stage is timed per window; the report
+//! sliding-window decoder (the frame into the window, shared as the pipeline shares captured
+//! frames, then solve, smoothing, unwrapping), the triangulation and the hand-off to the display
+//! (the coordinates move out of the decoder without a copy), after a few warm-up windows. Each stage is timed per window; the report
 //! gives median and 99th percentile and the window rate the decode thread sustains (one window
 //! per camera frame), from the median of its total time.
 
+use crate::decode::window::SharedFrame;
 use crate::decode::{
     CpuBackend, DecodeBackend, DecodeError, DecodeParams, SlidingDecoder, WindowOutcome,
 };
 use crate::frame::Frame;
 use crate::rig::{RigConfig, RigError, VirtualRig};
 use crate::triangulate::{PointCloud, TriangulateError, Triangulator};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Frames rendered once and cycled: two full sequences, so windows see changing data.
@@ -179,15 +181,20 @@ pub fn run_with(
         "display hand-off",
         "decode thread (total)",
     ];
+    // Shared with the window as the pipeline shares captured frames: no copy per frame.
+    let frames: Vec<SharedFrame> = frames
+        .iter()
+        .map(|frame| Arc::new(frame.clone()) as SharedFrame)
+        .collect();
     let mut samples: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
     // The device's own compute time, from backends with a clock of their own (GPU timestamps).
     let mut device_samples: Vec<f64> = Vec::new();
     let mut index = 0usize;
     let mut warm_up = WARM_UP_WINDOWS;
     while warm_up > 0 {
-        let frame = &frames[index % frames.len()];
+        let frame = Arc::clone(&frames[index % frames.len()]);
         index += 1;
-        if let WindowOutcome::Decoded(out) = decoder.push(frame)? {
+        if let WindowOutcome::Decoded(out) = decoder.push_shared(frame)? {
             triangulator.triangulate(out, &mut cloud)?;
             warm_up -= 1;
         }
@@ -195,10 +202,10 @@ pub fn run_with(
     let started = Instant::now();
     let mut valid_points = 0;
     while started.elapsed() < duration || samples[0].len() < 3 {
-        let frame = &frames[index % frames.len()];
+        let frame = Arc::clone(&frames[index % frames.len()]);
         index += 1;
         let t0 = Instant::now();
-        let out = match decoder.push(frame)? {
+        let out = match decoder.push_shared(frame)? {
             WindowOutcome::Decoded(out) => out,
             _ => continue,
         };

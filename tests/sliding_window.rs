@@ -1,6 +1,8 @@
 //! The sliding window: a moving scene decodes at every frame, stamped at the window centre.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
+use std::sync::Arc;
+use tremorscan::decode::window::SharedFrame;
 use tremorscan::decode::{
     decode_window, DecodeError, DecodeOutput, DecodeParams, SlidingDecoder, WindowOutcome,
     WindowSolver,
@@ -233,18 +235,24 @@ fn after_a_reset_the_stream_may_change_size() {
     assert!(valid > 320 * 200 * 9 / 10, "{valid}");
 }
 
-#[test]
-fn taking_the_coordinates_moves_them_and_the_next_window_overwrites_the_buffer() {
+/// The rig at 160×100 and its first `n` frames.
+fn small_rig_frames(n: u64) -> (VirtualRig, Vec<Frame>) {
     let config = RigConfig::paper(160, 100).unwrap();
     let seq = config.default_sequence().unwrap();
     let rig = VirtualRig::new(config, seq).unwrap();
-    let frames: Vec<Frame> = (0..5)
+    let frames = (0..n)
         .map(|i| {
             let mut frame = rig.blank_frame();
             rig.render(i, &mut frame, None).unwrap();
             frame
         })
         .collect();
+    (rig, frames)
+}
+
+#[test]
+fn taking_the_coordinates_moves_them_and_the_next_window_overwrites_the_buffer() {
+    let (rig, frames) = small_rig_frames(5);
     // The same stream through a decoder whose coordinates are never taken.
     let mut plain = new_decoder(&rig);
     let mut expected: Vec<Vec<f32>> = Vec::new();
@@ -276,4 +284,66 @@ fn taking_the_coordinates_moves_them_and_the_next_window_overwrites_the_buffer()
         }
     }
     assert_eq!(window, 3);
+}
+
+#[test]
+fn shared_frames_decode_like_copied_ones_and_are_let_go_when_they_leave_the_window() {
+    let (rig, frames) = small_rig_frames(7);
+    let results = |out: &DecodeOutput| (out.coordinate_px.clone(), out.invalid.clone());
+    let mut copying = new_decoder(&rig);
+    let mut expected = Vec::new();
+    for frame in &frames {
+        if let WindowOutcome::Decoded(out) = copying.push(frame).unwrap() {
+            expected.push(results(out));
+        }
+    }
+    assert_eq!(expected.len(), 5);
+
+    // Shared frames, with copied ones in between: the ring mixes both kinds.
+    let shared: Vec<Arc<Frame>> = frames.iter().cloned().map(Arc::new).collect();
+    let mut decoder = new_decoder(&rig);
+    let mut got = Vec::new();
+    for (i, frame) in shared.iter().enumerate() {
+        let outcome = if i == 3 {
+            decoder.push(frame).unwrap()
+        } else {
+            decoder
+                .push_shared(Arc::clone(frame) as SharedFrame)
+                .unwrap()
+        };
+        if let WindowOutcome::Decoded(out) = outcome {
+            got.push(results(out));
+        }
+        // Held while in the window (the last three frames), let go after; frame 3 was copied.
+        for (k, f) in shared.iter().enumerate().take(i + 1) {
+            let held = k + 3 > i && k != 3;
+            assert_eq!(
+                Arc::strong_count(f),
+                1 + usize::from(held),
+                "frame {k} after push {i}"
+            );
+        }
+    }
+    let same = |a: &[f32], b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .all(|(x, y)| x == y || (x.is_nan() && y.is_nan()))
+    };
+    assert_eq!(got.len(), expected.len());
+    for (window, ((coordinate, invalid), (want_coordinate, want_invalid))) in
+        got.iter().zip(&expected).enumerate()
+    {
+        assert!(
+            same(coordinate, want_coordinate),
+            "window {window}: coordinates differ"
+        );
+        assert_eq!(invalid, want_invalid, "window {window}: validity differs");
+    }
+    // A shared frame is checked like a copied one.
+    let mut small = Frame::new(80, 50, 3).unwrap();
+    small.pattern_index = 1;
+    let err = decoder
+        .push_shared(Arc::new(small) as SharedFrame)
+        .unwrap_err();
+    assert!(err.to_string().contains("expected 160×100×3"), "{err}");
 }

@@ -21,7 +21,7 @@ use std::time::Instant;
 pub struct Window<'a> {
     pub solver: &'a WindowSolver,
     /// The window's frames, oldest first, in `solver.order`; same size and channel count.
-    pub frames: &'a [Frame],
+    pub frames: &'a [&'a Frame],
     /// How many of the newest frames were not part of the previous window handed to this
     /// backend (the window length after a reset). A backend that keeps frames (on a GPU) uploads
     /// only these.

@@ -1,7 +1,9 @@
 //! The sliding-window decoder: a new result at every frame (paper §5.5, Figure 9).
 //!
-//! The decoder keeps the last `L` frames (`L` = sequence length: 3 for CPS-RGB) in a ring of
-//! reused buffers. Each pushed frame replaces the oldest; once the ring is full the window
+//! The decoder keeps the last `L` frames (`L` = sequence length: 3 for CPS-RGB) in a ring. A
+//! frame pushed by reference is copied into a reused buffer; one pushed as a [`SharedFrame`]
+//! (the live pipeline's captured frames) is kept without a copy, which saves the decode thread
+//! 0.7–1 ms per 1920×1200 frame. Each pushed frame replaces the oldest; once the ring is full the window
 //! (oldest first) is decoded if its pattern indices form a solvable system, so frame t reuses
 //! frames t−1 and t−2. A dropped frame simply produces a different order (for example 2, 0, 1); a
 //! window that repeats a shift is reported as [`WindowOutcome::Unsolvable`] and counted. Solvers
@@ -11,12 +13,47 @@
 //! about 0.5 mm per frame, so a stamp one frame off would be a measurable error.
 
 use super::backend::{CpuBackend, DecodeBackend, Window};
+use super::solver::MAX_OBSERVATIONS;
 use super::{check_window, DecodeError, DecodeOutput, DecodeParams, WindowSolver};
 use crate::color::CrossTalk;
 use crate::frame::Frame;
 use crate::pattern::PatternSequence;
+use std::borrow::Borrow;
 use std::collections::{HashMap, VecDeque};
 use std::sync::Arc;
+
+/// A frame the decoder can keep without copying it, shared with whoever captured it.
+pub type SharedFrame = Arc<dyn Borrow<Frame> + Send + Sync>;
+
+/// A frame of the ring: a buffer of the decoder's own, or a shared one.
+enum RingFrame {
+    Owned(Frame),
+    Shared(SharedFrame),
+}
+
+impl RingFrame {
+    fn frame(&self) -> &Frame {
+        match self {
+            Self::Owned(frame) => frame,
+            Self::Shared(shared) => (**shared).borrow(),
+        }
+    }
+}
+
+impl std::fmt::Debug for RingFrame {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let frame = self.frame();
+        let kind = match self {
+            Self::Owned(_) => "owned",
+            Self::Shared(_) => "shared",
+        };
+        write!(
+            f,
+            "{kind} {}×{} frame, pattern {}",
+            frame.width, frame.height, frame.pattern_index
+        )
+    }
+}
 
 /// What a pushed frame produced.
 #[derive(Debug)]
@@ -39,8 +76,8 @@ pub struct SlidingDecoder {
     cross_talk: CrossTalk,
     params: DecodeParams,
     chebyshev_n: Option<u32>,
-    /// The last frames, oldest first; buffers are recycled from the front to the back.
-    ring: VecDeque<Frame>,
+    /// The last frames, oldest first; owned buffers are recycled from the front to the back.
+    ring: VecDeque<RingFrame>,
     /// Frames pushed since creation or the last reset, at most the window length.
     filled: usize,
     /// Solvers per window order; `None` for orders that cannot be solved.
@@ -149,8 +186,44 @@ impl SlidingDecoder {
         true
     }
 
-    /// Adds `frame` and decodes the window ending with it.
+    /// Adds a copy of `frame` and decodes the window ending with it.
     pub fn push(&mut self, frame: &Frame) -> Result<WindowOutcome<'_>, DecodeError> {
+        self.check_next(frame)?;
+        let slot = if self.ring.len() < self.window_len() {
+            RingFrame::Owned(frame.clone())
+        } else {
+            match self.ring.pop_front() {
+                // Reuse the oldest frame's allocation.
+                Some(RingFrame::Owned(mut slot)) => {
+                    slot.data.clone_from(&frame.data);
+                    slot.width = frame.width;
+                    slot.height = frame.height;
+                    slot.channels = frame.channels;
+                    slot.time_s = frame.time_s;
+                    slot.pattern_index = frame.pattern_index;
+                    RingFrame::Owned(slot)
+                }
+                Some(RingFrame::Shared(_)) | None => RingFrame::Owned(frame.clone()),
+            }
+        };
+        self.ring.push_back(slot);
+        self.decode_newest()
+    }
+
+    /// Adds `frame` without copying it (the decoder holds it until it leaves the window) and
+    /// decodes the window ending with it.
+    pub fn push_shared(&mut self, frame: SharedFrame) -> Result<WindowOutcome<'_>, DecodeError> {
+        self.check_next((*frame).borrow())?;
+        if self.ring.len() >= self.window_len() {
+            self.ring.pop_front();
+        }
+        self.ring.push_back(RingFrame::Shared(frame));
+        self.decode_newest()
+    }
+
+    /// Refuses a frame that cannot join the window: a pattern index outside the sequence, or a
+    /// size or channel count other than the newest frame's.
+    fn check_next(&self, frame: &Frame) -> Result<(), DecodeError> {
         let len = self.window_len();
         if frame.pattern_index >= len {
             return Err(DecodeError::PatternIndex {
@@ -159,22 +232,16 @@ impl SlidingDecoder {
             });
         }
         if self.filled > 0 {
-            if let Some(newest) = self.ring.back() {
+            if let Some(newest) = self.ring.back().map(RingFrame::frame) {
                 frame.check_shape(newest.width, newest.height, newest.channels)?;
             }
         }
-        if self.ring.len() < len {
-            self.ring.push_back(frame.clone());
-        } else if let Some(mut slot) = self.ring.pop_front() {
-            // Reuse the oldest frame's allocation.
-            slot.data.clone_from(&frame.data);
-            slot.width = frame.width;
-            slot.height = frame.height;
-            slot.channels = frame.channels;
-            slot.time_s = frame.time_s;
-            slot.pattern_index = frame.pattern_index;
-            self.ring.push_back(slot);
-        }
+        Ok(())
+    }
+
+    /// Decodes the window that ends with the frame just added to the ring.
+    fn decode_newest(&mut self) -> Result<WindowOutcome<'_>, DecodeError> {
+        let len = self.window_len();
         self.filled = (self.filled + 1).min(len);
         self.unsent_frames = (self.unsent_frames + 1).min(len);
         if self.filled < len {
@@ -183,9 +250,11 @@ impl SlidingDecoder {
                 need: len,
             });
         }
-        if let (Some(max_span_s), Some(first), Some(last)) =
-            (self.max_span_s, self.ring.front(), self.ring.back())
-        {
+        if let (Some(max_span_s), Some(first), Some(last)) = (
+            self.max_span_s,
+            self.ring.front().map(RingFrame::frame),
+            self.ring.back().map(RingFrame::frame),
+        ) {
             let span_s = last.time_s - first.time_s;
             if span_s > max_span_s {
                 self.spread_windows += 1;
@@ -193,7 +262,8 @@ impl SlidingDecoder {
             }
         }
         self.order.clear();
-        self.order.extend(self.ring.iter().map(|f| f.pattern_index));
+        self.order
+            .extend(self.ring.iter().map(|f| f.frame().pattern_index));
         let solver = match self.solvers.get(&self.order) {
             Some(Some(s)) => Arc::clone(s),
             Some(None) => {
@@ -219,8 +289,18 @@ impl SlidingDecoder {
                 Err(e) => return Err(e),
             },
         };
-        // Oldest first, contiguous: no per-frame allocation.
-        let frames: &[Frame] = self.ring.make_contiguous();
+        // Oldest first, in an array on the stack: no per-frame allocation. The solver refused
+        // windows of more than MAX_OBSERVATIONS frames above. (The ring cannot be empty here,
+        // a frame was just added; the `else` only keeps this free of panics.)
+        let Some(first) = self.ring.front().map(RingFrame::frame) else {
+            return Ok(WindowOutcome::Filling { have: 0, need: len });
+        };
+        let mut refs: [&Frame; MAX_OBSERVATIONS] = [first; MAX_OBSERVATIONS];
+        let count = self.ring.len().min(MAX_OBSERVATIONS);
+        for (slot, frame) in refs.iter_mut().zip(&self.ring) {
+            *slot = frame.frame();
+        }
+        let frames = &refs[..count];
         let (w, h) = (frames[0].width, frames[0].height);
         let out = self
             .output

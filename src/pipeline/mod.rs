@@ -116,6 +116,13 @@ pub struct CapturedFrame {
     pub arrived: Instant,
 }
 
+/// The decoder keeps captured frames in its window without copying them.
+impl std::borrow::Borrow<Frame> for CapturedFrame {
+    fn borrow(&self) -> &Frame {
+        &self.frame
+    }
+}
+
 /// One decoded, triangulated window.
 #[derive(Debug, Clone)]
 pub struct CloudFrame {

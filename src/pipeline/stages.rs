@@ -4,6 +4,7 @@ use super::{
     is_end, offer_to_recorder, CapturedFrame, CloudFrame, DecodePolicy, PipelineEvent,
     RecorderLink, Shared, StageQueue,
 };
+use crate::decode::window::SharedFrame;
 use crate::decode::{SlidingDecoder, WindowOutcome};
 use crate::device::{Camera, DeviceError};
 use crate::frame::Frame;
@@ -106,7 +107,8 @@ pub(super) fn decode_loop(
     let _close_consumers = shared.consumers.as_deref().map(CloseOnDrop);
     let mut spare: Vec<Arc<CloudFrame>> = Vec::new();
     while let Some(item) = queue.pop() {
-        let outcome = match decoder.push(&item.frame) {
+        // The window keeps the captured frame itself (capture reuses it once nobody holds it).
+        let outcome = match decoder.push_shared(Arc::clone(&item) as SharedFrame) {
             Ok(outcome) => outcome,
             Err(e) => {
                 shared.event(PipelineEvent::DecodeFailed(e.to_string()));

@@ -236,7 +236,7 @@ fn the_gpu_refuses_what_it_cannot_decode() {
     // Frames out of the solver's order.
     let shuffled = [window[1].clone(), window[2].clone(), window[0].clone()];
     let err = gpu
-        .decode(&view(&solver, &shuffled, &params), &mut out)
+        .decode(&view(&solver, &refs(&shuffled), &params), &mut out)
         .unwrap_err();
     assert!(err.to_string().contains("expects"), "{err}");
     // Frames of another size.
@@ -246,7 +246,7 @@ fn the_gpu_refuses_what_it_cannot_decode() {
         3,
     );
     let err = gpu
-        .decode(&view(&solver, &small, &params), &mut out)
+        .decode(&view(&solver, &refs(&small), &params), &mut out)
         .unwrap_err();
     assert!(err.to_string().contains("80×64"), "{err}");
 }
@@ -260,7 +260,16 @@ fn solver_n() -> Option<u32> {
         .chebyshev_n()
 }
 
-fn view<'a>(solver: &'a WindowSolver, frames: &'a [Frame], params: &'a DecodeParams) -> Window<'a> {
+/// The frames of a window as the decoder hands them to a backend.
+fn refs(frames: &[Frame]) -> Vec<&Frame> {
+    frames.iter().collect()
+}
+
+fn view<'a>(
+    solver: &'a WindowSolver,
+    frames: &'a [&'a Frame],
+    params: &'a DecodeParams,
+) -> Window<'a> {
     Window {
         solver,
         frames,
@@ -281,7 +290,7 @@ fn a_failing_gpu_reports_once_and_the_decode_goes_on_on_the_cpu() {
     // refuses the frames, as it would fail on a lost device.
     let mut wrong = DecodeOutput::new(80, 50, &solver);
     let err = backend
-        .decode(&view(&solver, &window, &params), &mut wrong)
+        .decode(&view(&solver, &refs(&window), &params), &mut wrong)
         .unwrap_err();
     assert!(err.to_string().contains("decoded on the CPU"), "{err}");
     assert!(
@@ -293,7 +302,7 @@ fn a_failing_gpu_reports_once_and_the_decode_goes_on_on_the_cpu() {
     let mut out = DecodeOutput::new(160, 100, &solver);
     check_window(&solver, &window, &params, solver_n(), &mut out).unwrap();
     backend
-        .decode(&view(&solver, &window, &params), &mut out)
+        .decode(&view(&solver, &refs(&window), &params), &mut out)
         .unwrap();
     let mut cpu = DecodeOutput::new(160, 100, &solver);
     tremorscan::decode::decode_window(&solver, &window, &params, solver_n(), &mut cpu).unwrap();
@@ -321,10 +330,10 @@ fn a_device_error_is_returned_not_a_panic() {
     let mut out = DecodeOutput::new(160, 100, &solver);
     let _buffer = invalid_buffer(&ctx);
     let err = gpu
-        .decode(&view(&solver, &window, &params), &mut out)
+        .decode(&view(&solver, &refs(&window), &params), &mut out)
         .unwrap_err();
     assert!(err.to_string().contains("reported an error"), "{err}");
-    gpu.decode(&view(&solver, &window, &params), &mut out)
+    gpu.decode(&view(&solver, &refs(&window), &params), &mut out)
         .unwrap();
 }
 
