@@ -1,14 +1,14 @@
 //! The sliding-window decoder: a new result at every frame (paper §5.5, Figure 9).
 //!
-//! The decoder keeps the last `L` frames (`L` = sequence length: 3 for CPS-RGB) in a ring. A
-//! frame pushed by reference is copied into a reused buffer; one pushed as a [`SharedFrame`]
-//! (the live pipeline's captured frames) is kept without a copy, which saves the decode thread
-//! 0.7–1 ms per 1920×1200 frame. Each pushed frame replaces the oldest; once the ring is full the window
-//! (oldest first) is decoded if its pattern indices form a solvable system, so frame t reuses
-//! frames t−1 and t−2. A dropped frame simply produces a different order (for example 2, 0, 1); a
-//! window that repeats a shift is reported as [`WindowOutcome::Unsolvable`] and counted. Solvers
-//! are cached per window order (unsolvable orders too): the pseudo-inverse is computed once per
-//! order, never per pixel or per frame.
+//! The decoder keeps the last `L` frames (`L` = sequence length: 3 for CPS-RGB) in a ring. A frame
+//! pushed by reference is copied into a reused buffer; one pushed as a [`SharedFrame`] (the live
+//! pipeline's captured frames) is kept without a copy, which saves the decode thread 0.7–1 ms per
+//! 1920×1200 frame. Each pushed frame replaces the oldest; once the ring is full the window (oldest
+//! first) is decoded if its pattern indices form a solvable system, so frame t reuses frames t−1
+//! and t−2. A dropped frame simply produces a different order (for example 2, 0, 1); a window that
+//! repeats a shift is reported as [`WindowOutcome::Unsolvable`] and counted. Solvers are cached per
+//! window order (unsolvable orders too): the pseudo-inverse is computed once per order, never per
+//! pixel or per frame.
 //! A result is stamped at the mean of its frames' times: in a 5 Hz, 2 mm tremor a finger moves
 //! about 0.5 mm per frame, so a stamp one frame off would be a measurable error.
 
