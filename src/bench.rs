@@ -4,9 +4,9 @@
 //! the requested time, through exactly the work the pipeline's decode thread does per frame: the
 //! sliding-window decoder (the frame into the window, shared as the pipeline shares captured
 //! frames, then solve, smoothing, unwrapping), the triangulation and the hand-off to the display
-//! (the coordinates move out of the decoder without a copy), after a few warm-up windows. Each stage is timed per window; the report
-//! gives median and 99th percentile and the window rate the decode thread sustains (one window
-//! per camera frame), from the median of its total time.
+//! (the coordinates move out of the decoder without a copy), after a few warm-up windows. Each
+//! stage is timed per window; the report gives median and 99th percentile and the window rate the
+//! decode thread sustains (one window per camera frame), from the median of its total time.
 
 use crate::decode::window::SharedFrame;
 use crate::decode::{

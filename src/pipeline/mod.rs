@@ -13,10 +13,10 @@
 //!   on would need a pool of them, and both stages already spread over all cores through rayon,
 //!   in a worker pool of their own ("decode-worker-N"; the thread "decode" hands its loop to the
 //!   pool, so the loop runs on one of these workers and takes part in the parallel work of each
-//!   stage). In the process-wide pool they queued
-//!   behind any other parallel work, such as the virtual rig rendering the next frame on the
-//!   capture thread: recording the rig at 640×400 for 10 s, the decode got 60 of 333 frames
-//!   decoded (the others dropped, or in windows broken by drops); in its own pool, 288 of 290.
+//!   stage). In the process-wide pool they queued behind any other parallel work, such as the
+//!   virtual rig rendering the next frame on the capture thread: recording the rig at 640×400
+//!   for 10 s, the decode got 60 of 333 frames decoded (the others dropped, or in windows broken
+//!   by drops); in its own pool, 288 of 290.
 //!   Real time, the decode queue keeps the newest frames and counts drops; a replay for analysis
 //!   uses [`DecodePolicy::Lossless`] and makes capture wait instead.
 //! - Recording never drops silently: when the recorder's queue is full (the disk cannot keep up)
