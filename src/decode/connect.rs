@@ -67,7 +67,11 @@ fn plane(row: &[f32], w: usize, p: usize, offset: usize, len: usize) -> &[f32] {
 
 /// Sets `bit` in `bits[x]` when pixel `x + da` of row `a` and pixel `x + db` of row `b` are
 /// connected, for `x < len`.
-#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
 #[allow(
     clippy::too_many_arguments,
     reason = "a row kernel over two typed rows"

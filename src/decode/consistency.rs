@@ -59,7 +59,11 @@ pub(crate) fn flag_order_jumps(out: &mut DecodeOutput, half_period_px: f32) {
 
 /// `jump[x] |= 1` where `links[x]` has `bit` and `here[x]`, `there[x]` are both valid and more
 /// than `limit` apart (NaN compares false, so invalid pixels never count).
-#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
 fn pair_jumps(here: &[f32], there: &[f32], links: &[u8], bit: u8, limit: f32, jump: &mut [u8]) {
     for x in 0..jump.len() {
         let linked = links[x] & bit != 0;
@@ -68,7 +72,11 @@ fn pair_jumps(here: &[f32], there: &[f32], links: &[u8], bit: u8, limit: f32, ju
     }
 }
 
-#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
 fn apply_jumps(flags: &mut [u8], coord: &mut [f32], jump: &[u8]) {
     for x in 0..flags.len() {
         let j = jump[x];

@@ -103,7 +103,11 @@ struct RowOut<'a> {
     clippy::too_many_arguments,
     reason = "a stage kernel over one row's typed buffers"
 )]
-#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
 fn solve_row<F: Borrow<Frame>>(
     solver: &WindowSolver,
     frames: &[F],

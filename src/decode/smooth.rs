@@ -30,7 +30,11 @@ pub(crate) fn smooth_unit_phasor(out: &mut DecodeOutput, params: &SmoothingParam
 /// result `F + B − v` written to `dst`, for the three planes at once. The forward and the
 /// backward recursion run in the same loop (from both ends), so six independent chains hide the
 /// latency of each step; `B` goes to `scratch` and is added in a last, vectorised pass.
-#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
 fn horizontal_row(
     src: [&[f32]; 3],
     dst: [&mut [f32]; 3],
@@ -212,7 +216,11 @@ fn step_state(state: [&mut [f32]; 3], v: [&[f32]; 3], links: Option<&[u8]>, deca
     }
 }
 
-#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
 fn vertical_block(c: &VerticalBlock<'_>, planes: [&mut [f32]; 3], state: &mut [f32]) {
     let w = c.w;
     let [p0, p1, p2] = planes;

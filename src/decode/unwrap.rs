@@ -112,7 +112,11 @@ fn round_fast(v: f32) -> f32 {
     (v + MAGIC) - MAGIC
 }
 
-#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
 fn chebyshev_row(c: &Consts<'_>, row: Row<'_>) {
     let w = c.w;
     let p = &c.params;

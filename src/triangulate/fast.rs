@@ -225,7 +225,11 @@ pub(super) struct DecodedRow<'a> {
 
 /// Triangulates one row starting at pixel `first`; `depth` is a row of scratch. Pixels whose
 /// distortion fit is missing are left NaN (the caller takes the exact path for them).
-#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+sse4.1"))]
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
 pub(super) fn triangulate_row(
     table: &FastTable,
     first: usize,
