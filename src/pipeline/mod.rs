@@ -310,7 +310,7 @@ impl Pipeline {
         &self.camera_name
     }
 
-    /// What runs the decode now ("CPU (2 threads)", or the GPU's name).
+    /// What runs the decode now ("CPU (AVX-512, 2 threads)", or the GPU's name).
     pub fn decoder_name(&self) -> String {
         self.shared
             .decoder_name

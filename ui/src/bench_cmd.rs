@@ -66,8 +66,8 @@ fn write_report(
 ) -> std::io::Result<()> {
     writeln!(
         out,
-        "{} windows at {}×{} on {} threads, {} valid points per window",
-        r.windows, r.width, r.height, r.threads, r.valid_points
+        "{} windows at {}×{} on the {}, {} valid points per window",
+        r.windows, r.width, r.height, r.backend, r.valid_points
     )?;
     writeln!(out, "{:<24} {:>10} {:>10}", "stage", "median ms", "p99 ms")?;
     for s in &r.stages {

@@ -31,6 +31,12 @@ fn bench_prints_stages_and_a_parsable_last_line() {
         assert!(stdout.contains(stage), "{stage} missing:\n{stdout}");
     }
     assert!(stdout.contains("frames/s sustainable"), "{stdout}");
+    // The header names the instruction set the CPU kernels dispatched to.
+    let kernels = tremorscan::decode::backend::kernel_instruction_set();
+    assert!(
+        stdout.contains(&format!("on the CPU ({kernels}, ")),
+        "{stdout}"
+    );
     // The CI machine has lavapipe: the GPU path runs there too.
     assert!(
         stdout.contains("GPU: ") && stdout.contains("decode thread"),
