@@ -70,6 +70,18 @@ impl<T> StageQueue<T> {
         true
     }
 
+    /// Waits until the queue has room for one more item. Returns `false` if it was closed. A
+    /// lossless producer calls this before it produces (reads, renders) its next item, so that
+    /// the item does not sit finished in the producer while the queue is full: that wait would
+    /// add to its latency and gain nothing. With one producer the room stays until it pushes.
+    pub fn wait_for_room(&self) -> bool {
+        let mut s = lock(&self.state);
+        while s.items.len() >= self.capacity && !s.closed {
+            s = self.changed.wait(s).unwrap_or_else(PoisonError::into_inner);
+        }
+        !s.closed
+    }
+
     /// Takes the oldest item, waiting for one; `None` once closed and empty.
     pub fn pop(&self) -> Option<T> {
         let mut s = lock(&self.state);
@@ -179,6 +191,30 @@ mod tests {
         producer.join().unwrap();
         assert_eq!(got, (0..100).collect::<Vec<_>>());
         assert_eq!(q.dropped(), 0);
+    }
+
+    #[test]
+    fn waiting_for_room_returns_once_an_item_is_taken_or_the_queue_closes() {
+        let q = Arc::new(StageQueue::new(1));
+        assert!(q.wait_for_room(), "an empty queue has room");
+        assert!(q.push_wait(1));
+        let waiter = {
+            let q = Arc::clone(&q);
+            std::thread::spawn(move || q.wait_for_room())
+        };
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        assert!(!waiter.is_finished(), "a full queue has no room");
+        assert_eq!(q.pop(), Some(1));
+        assert!(waiter.join().unwrap(), "the pop made room");
+        assert!(q.push_wait(2));
+        let waiter = {
+            let q = Arc::clone(&q);
+            std::thread::spawn(move || q.wait_for_room())
+        };
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        assert!(!waiter.is_finished());
+        q.close();
+        assert!(!waiter.join().unwrap(), "closed: no room to wait for");
     }
 
     #[test]

@@ -29,6 +29,13 @@ pub(super) fn capture_loop(
     let mut pool: Vec<Arc<CapturedFrame>> = Vec::with_capacity(FRAME_POOL);
     let mut expected_next = 0u64;
     while !shared.stop.load(Ordering::SeqCst) {
+        // Lossless: grab only once decode can take the frame, so that no finished frame waits
+        // here for room (its wait would count as latency, and capture would gain nothing).
+        if policy == DecodePolicy::Lossless
+            && (!queue.wait_for_room() || shared.stop.load(Ordering::SeqCst))
+        {
+            break;
+        }
         // A pooled frame nobody else holds any more, or a new one.
         let mut item = match pool.iter().position(|a| Arc::strong_count(a) == 1) {
             Some(i) => pool.swap_remove(i),

@@ -119,6 +119,14 @@ pub fn run_replay(args: &ReplayArgs) -> Result<()> {
         } else {
             DecodePolicy::Lossless
         },
+        // Lossless, capture waits for decode: one frame waiting keeps both busy (reading a
+        // frame takes a fraction of a window), and every further one only adds its wait to the
+        // latency. Real time keeps the default's margin for the camera's jitter.
+        decode_queue: if args.real_time {
+            PipelineConfig::default().decode_queue
+        } else {
+            1
+        },
         display: false,
         ..PipelineConfig::default()
     };
