@@ -13,13 +13,7 @@ use tremorscan::rig::{RigConfig, VirtualRig};
 
 fn frames(rig: &VirtualRig, first: u64) -> Vec<Frame> {
     let len = rig.sequence.entries.len() as u64;
-    (first..first + len)
-        .map(|i| {
-            let mut f = rig.blank_frame();
-            rig.render(i, &mut f, None).unwrap();
-            f
-        })
-        .collect()
+    common::rendered(rig, first..first + len)
 }
 
 /// Decodes `frames` both ways and compares every output plane.

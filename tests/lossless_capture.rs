@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::rig;
+use common::{rendered, rig};
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -78,13 +78,7 @@ impl DecodeBackend for SlowBackend {
 #[test]
 fn a_lossless_capture_grabs_only_what_the_queue_can_take() {
     let rig = rig(160, 100);
-    let frames: Vec<Frame> = (0..3)
-        .map(|i| {
-            let mut f = rig.blank_frame();
-            rig.render(i, &mut f, None).unwrap();
-            f
-        })
-        .collect();
+    let frames = rendered(&rig, 0..3);
     let grabbed = Arc::new(AtomicUsize::new(0));
     let ahead = Arc::new(Mutex::new(Vec::new()));
     let total = 20;

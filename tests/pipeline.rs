@@ -21,13 +21,7 @@ fn manifest(rig: &VirtualRig) -> Manifest {
 }
 
 fn rendered(rig: &VirtualRig, n: u64) -> Vec<Frame> {
-    (0..n)
-        .map(|i| {
-            let mut f = rig.blank_frame();
-            rig.render(i, &mut f, None).unwrap();
-            f
-        })
-        .collect()
+    common::rendered(rig, 0..n)
 }
 
 /// Frames from memory after `go` is set, `interval` apart (zero: as fast as asked for).

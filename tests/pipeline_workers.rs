@@ -12,7 +12,6 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tremorscan::device::{Pacing, ReplayCamera};
-use tremorscan::frame::Frame;
 use tremorscan::pipeline::{DecodePolicy, Pipeline, PipelineConfig};
 use tremorscan::session::{write_session, Session};
 
@@ -71,13 +70,7 @@ impl Drop for GlobalPoolHeld {
 #[test]
 fn the_decode_keeps_going_while_the_process_wide_pool_is_busy() {
     let rig = rig(160, 100);
-    let frames: Vec<Frame> = (0..9)
-        .map(|i| {
-            let mut f = rig.blank_frame();
-            rig.render(i, &mut f, None).unwrap();
-            f
-        })
-        .collect();
+    let frames = common::rendered(&rig, 0..9);
     let dir = scratch("workers");
     write_session(&dir, rig.session_manifest(), &frames).unwrap();
     let session = Session::open(&dir).unwrap();

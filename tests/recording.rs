@@ -30,13 +30,7 @@ fn trial() -> TrialJson {
 }
 
 fn frames(rig: &VirtualRig, n: u64) -> Vec<Frame> {
-    (0..n)
-        .map(|i| {
-            let mut f = rig.blank_frame();
-            rig.render(i, &mut f, None).unwrap();
-            f
-        })
-        .collect()
+    common::rendered(rig, 0..n)
 }
 
 #[test]

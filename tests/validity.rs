@@ -49,13 +49,7 @@ fn frames_that_break_the_chebyshev_relation_are_marked() {
     let config = still_hand_rig(NoiseModel::default());
     let seq = config.default_sequence().unwrap();
     let rig = VirtualRig::new(config, seq.clone()).unwrap();
-    let frames: Vec<Frame> = (0..3)
-        .map(|i| {
-            let mut f = rig.blank_frame();
-            rig.render(i, &mut f, None).unwrap();
-            f
-        })
-        .collect();
+    let frames = common::rendered(&rig, 0..3);
     let mut shifted_seq = seq.clone();
     for entry in &mut shifted_seq.entries {
         if let tremorscan::pattern::PatternEntry::Rgb { red, .. } = entry {

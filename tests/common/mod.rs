@@ -61,6 +61,17 @@ pub fn checks_off(mut params: DecodeParams) -> DecodeParams {
 mod scratch;
 pub use scratch::{scratch, scratch_dir, Scratch};
 
+/// Frames `numbers` of the rig's stream, rendered without ground truth.
+pub fn rendered(rig: &VirtualRig, numbers: std::ops::Range<u64>) -> Vec<tremorscan::frame::Frame> {
+    numbers
+        .map(|i| {
+            let mut f = rig.blank_frame();
+            rig.render(i, &mut f, None).unwrap();
+            f
+        })
+        .collect()
+}
+
 /// The paper rig at `width`×`height` with the trembling hand and its default sequence.
 pub fn rig(width: usize, height: usize) -> VirtualRig {
     let config = RigConfig::paper(width, height).unwrap();
