@@ -6,13 +6,15 @@
 //! frames, then solve, smoothing, unwrapping), the triangulation and the hand-off to the display
 //! (the coordinates move out of the decoder without a copy), after a few warm-up windows. Each
 //! stage is timed per window; the report gives median and 99th percentile and the window rate the
-//! decode thread sustains (one window per camera frame), from the median of its total time.
+//! decode thread sustains (one window per camera frame), from the median of its total time, and
+//! the process's resident memory after the warm-up and at the end (steady state: no growth).
 
 use crate::decode::window::SharedFrame;
 use crate::decode::{
     CpuBackend, DecodeBackend, DecodeError, DecodeParams, SlidingDecoder, WindowOutcome,
 };
 use crate::frame::Frame;
+use crate::memory::ResidentMemory;
 use crate::rig::{RigConfig, RigError, VirtualRig};
 use crate::triangulate::{PointCloud, TriangulateError, Triangulator};
 use std::sync::Arc;
@@ -81,6 +83,9 @@ pub struct BenchReport {
     pub fps_sustainable: f64,
     /// Valid points of the last window.
     pub valid_points: usize,
+    /// This process's resident memory after the warm-up windows and at the end of the run
+    /// (steady state: they should be equal); `None` where the system does not report it.
+    pub memory: Option<(ResidentMemory, ResidentMemory)>,
 }
 
 /// The `q`-quantile (0..=1) of `values` by nearest rank; `values` is sorted in place.
@@ -199,6 +204,7 @@ pub fn run_with(
             warm_up -= 1;
         }
     }
+    let memory_after_warm_up = ResidentMemory::now();
     let started = Instant::now();
     let mut valid_points = 0;
     while started.elapsed() < duration || samples[0].len() < 3 {
@@ -234,6 +240,7 @@ pub fn run_with(
         }
         valid_points = cloud.valid_count();
     }
+    let memory_at_end = ResidentMemory::now();
     let windows = samples[0].len();
     if windows == 0 {
         return Err(BenchError::NoWindows);
@@ -264,6 +271,7 @@ pub fn run_with(
         fps_sustainable: 1e3 / total,
         stages,
         valid_points,
+        memory: memory_after_warm_up.zip(memory_at_end),
     })
 }
 

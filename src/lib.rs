@@ -11,6 +11,7 @@
 //! * [`triangulate`]: decoded coordinates to an organised, coloured point cloud.
 //! * [`rig`]: the virtual projector–camera rig with a trembling hand and exact ground truth.
 //! * [`bench`]: the per-stage throughput check behind `tremorscan bench`.
+//! * [`memory`]: this process's resident memory, for the bench and the progress lines.
 
 pub mod bench;
 pub mod calibrate;
@@ -22,6 +23,7 @@ pub mod frame;
 pub mod geometry;
 mod hash;
 pub mod jsonfile;
+pub mod memory;
 pub mod pattern;
 pub mod pipeline;
 pub mod rig;

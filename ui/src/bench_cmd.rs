@@ -87,6 +87,7 @@ fn write_report(
         "CPU: {:.1} frames/s sustainable; this PC {verdict} a {CAMERA_FPS} FPS camera at this size",
         r.fps_sustainable
     )?;
+    memory_line(out, "CPU", r)?;
     match gpu {
         Ok(g) => {
             let stage = |name: &str| g.stages.iter().find(|s| s.name == name);
@@ -115,6 +116,7 @@ fn write_report(
                     t.median_ms, t.p99_ms, g.triangulate_ms_median, g.fps_sustainable
                 )?;
             }
+            memory_line(out, "GPU", g)?;
         }
         Err(e) => writeln!(out, "GPU: not measured: {e:#}")?,
     }
@@ -123,4 +125,21 @@ fn write_report(
         "decode_ms_median={:.3} triangulate_ms_median={:.3} fps_sustainable={:.2}",
         r.decode_ms_median, r.triangulate_ms_median, r.fps_sustainable
     )
+}
+
+/// The process's resident memory over the measured windows of `r`: steady state means no growth.
+fn memory_line(out: &mut impl Write, path: &str, r: &BenchReport) -> std::io::Result<()> {
+    let mb = |bytes: u64| bytes as f64 / 1e6;
+    match r.memory {
+        Some((start, end)) => writeln!(
+            out,
+            "{path}: resident memory {:.1} MB after the warm-up, {:.1} MB at the end ({:+.1} MB over {} windows); peak of the process so far {:.1} MB",
+            mb(start.resident_bytes),
+            mb(end.resident_bytes),
+            mb(end.resident_bytes) - mb(start.resident_bytes),
+            r.windows,
+            mb(end.peak_bytes)
+        ),
+        None => writeln!(out, "{path}: resident memory not reported by this system"),
+    }
 }

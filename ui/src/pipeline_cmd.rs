@@ -1,6 +1,7 @@
 //! `tremorscan record` and `replay`: the threaded pipeline headless. `record` runs the virtual rig
 //! live and records a trial; `replay` plays a session through capture, decode and triangulation.
-//! Both print the pipeline's metrics once a second and at the end.
+//! Both print the pipeline's metrics and the process's resident memory once a second and at the
+//! end.
 
 use crate::gpu_decode::{start_pipeline, DecoderChoice};
 use anyhow::{Context, Result};
@@ -42,6 +43,18 @@ fn report_events(pipeline: &Pipeline) -> bool {
     fine
 }
 
+/// " | resident 430.1 MB (peak 441.0 MB)" for the progress lines: a long run shows whether memory
+/// stays flat. Empty where the system does not report it.
+fn resident_memory() -> String {
+    tremorscan::memory::ResidentMemory::now().map_or_else(String::new, |m| {
+        format!(
+            " | resident {:.1} MB (peak {:.1} MB)",
+            m.resident_bytes as f64 / 1e6,
+            m.peak_bytes as f64 / 1e6
+        )
+    })
+}
+
 /// Runs until the source ends or `seconds` of wall time pass, printing metrics each second.
 fn run_for(pipeline: &Pipeline, seconds: Option<f64>) -> bool {
     let start = Instant::now();
@@ -55,7 +68,7 @@ fn run_for(pipeline: &Pipeline, seconds: Option<f64>) -> bool {
         fine &= report_events(pipeline);
         if last_print.elapsed() >= Duration::from_secs(1) {
             last_print = Instant::now();
-            println!("{}", pipeline.metrics());
+            println!("{}{}", pipeline.metrics(), resident_memory());
         }
     }
     fine
@@ -144,7 +157,7 @@ pub fn run_replay(args: &ReplayArgs) -> Result<()> {
     let wall = started.elapsed().as_secs_f64();
     let fine = fine & report_events(&pipeline);
     let m = pipeline.stop();
-    println!("{m}");
+    println!("{m}{}", resident_memory());
     println!(
         "replayed {} frames into {} windows in {wall:.2} s ({:.1} windows/s)",
         m.captured,
@@ -225,7 +238,7 @@ pub fn run_record(args: &RecordArgs) -> Result<()> {
     let _ = pipeline.stop_recording();
     fine &= report_events(&pipeline);
     let m = pipeline.stop();
-    println!("{m}");
+    println!("{m}{}", resident_memory());
     anyhow::ensure!(fine, "the recording did not complete (see above)");
     Ok(())
 }

@@ -31,6 +31,26 @@ fn bench_prints_stages_and_a_parsable_last_line() {
         assert!(stdout.contains(stage), "{stage} missing:\n{stdout}");
     }
     assert!(stdout.contains("frames/s sustainable"), "{stdout}");
+    // Resident memory over the measured windows, for each path (Linux reports it).
+    if cfg!(target_os = "linux") {
+        for path in ["CPU", "GPU"] {
+            let line = stdout
+                .lines()
+                .find(|l| l.starts_with(&format!("{path}: resident memory ")))
+                .unwrap_or_else(|| panic!("no {path} memory line:\n{stdout}"));
+            let megabytes: Vec<f64> = line
+                .split_whitespace()
+                .filter_map(|word| word.trim_matches(['(', ')', ';']).parse().ok())
+                .collect();
+            // After the warm-up, at the end, the growth, the windows, the peak.
+            assert_eq!(megabytes.len(), 5, "{line}");
+            let (start, end, growth, peak) =
+                (megabytes[0], megabytes[1], megabytes[2], megabytes[4]);
+            // The kernel's counters are approximate by some pages (see tests/resident_memory.rs).
+            assert!(start > 1.0 && end > 1.0 && peak + 1.0 >= end, "{line}");
+            assert!((end - start - growth).abs() < 0.11, "{line}");
+        }
+    }
     // The header names the instruction set the CPU kernels dispatched to.
     let kernels = tremorscan::decode::backend::kernel_instruction_set();
     assert!(

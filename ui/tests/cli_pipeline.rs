@@ -75,6 +75,15 @@ fn record_interrupt_then_replay() {
             )),
             "{stdout}"
         );
+        // The closing metrics line carries the process's resident memory where Linux reports it.
+        if cfg!(target_os = "linux") {
+            assert!(
+                stdout
+                    .lines()
+                    .any(|l| l.starts_with("capture ") && l.contains(" | resident ")),
+                "{stdout}"
+            );
+        }
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
