@@ -201,6 +201,8 @@ pub fn run_with(
         index += 1;
         if let WindowOutcome::Decoded(out) = decoder.push_shared(frame)? {
             triangulator.triangulate(out, &mut cloud)?;
+            // The hand-off too: its first exchange leaves the decoder a buffer to allocate.
+            decoder.take_coordinate(&mut display_coordinate);
             warm_up -= 1;
         }
     }
