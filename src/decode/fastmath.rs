@@ -3,6 +3,10 @@
 //! `atan2` reduces to `atan(t)` with `t = min/max ∈ [0, 1]` and evaluates the degree-9 odd minimax
 //! polynomial of Abramowitz & Stegun 4.4.47 (|error| ≤ 1e-5 rad), then restores the octant with
 //! selects that the compiler turns into blends, so loops over rows vectorise.
+//!
+//! [`whole_to_byte`] narrows `f32` to `u8` without Rust's saturating `as` cast, which LLVM
+//! compiles to a scalar conversion per lane on x86 (about seven instructions each) and which
+//! therefore kept whole loops from vectorising.
 
 use std::f32::consts::{FRAC_PI_2, PI, TAU};
 
@@ -38,6 +42,29 @@ pub fn phase_0_tau(y: f32, x: f32) -> f32 {
     }
 }
 
+/// The byte of a whole number `v` in `[0, 255]`, for values such as sums of flag bits.
+///
+/// Adding 2²³ moves `v` into the mantissa's low bits exactly (the sum's exponent fixes one unit
+/// per bit), so the low byte of the bit pattern is `v`: a float add, a bit cast and a truncation,
+/// which all vectorise. Other inputs give an unspecified byte; use [`colour_byte`] for those.
+#[inline(always)]
+pub fn whole_to_byte(v: f32) -> u8 {
+    const TWO_POW_23: f32 = 8_388_608.0;
+    // Truncation to the low byte is the intent.
+    (v + TWO_POW_23).to_bits() as u8
+}
+
+/// `v` clamped to `[0, 255]` and truncated toward zero, as a byte; NaN gives 0. Equal to
+/// `v.clamp(0.0, 255.0) as u8` for every input, but vectorises (see [`whole_to_byte`]).
+#[inline(always)]
+#[allow(
+    clippy::manual_clamp,
+    reason = "`clamp` keeps NaN; `max` maps it to 0, as the cast this replaces does"
+)]
+pub fn colour_byte(v: f32) -> u8 {
+    whole_to_byte(v.max(0.0).min(255.0).floor())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -57,5 +84,30 @@ mod tests {
         assert!(worst < 2e-5, "worst error {worst}");
         assert_eq!(atan2(0.0, 0.0), 0.0);
         assert!((phase_0_tau(-1.0, 1.0) - 7.0 * PI / 4.0).abs() < 2e-5);
+    }
+
+    #[test]
+    fn byte_conversions_equal_the_saturating_cast() {
+        for v in 0..=255u8 {
+            assert_eq!(whole_to_byte(f32::from(v)), v);
+        }
+        // Every float in and around the byte range, the limits and the special values.
+        let mut values = vec![
+            f32::NAN,
+            -f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::MAX,
+            f32::MIN,
+            -0.0,
+            1e-30,
+            255.999_98,
+            256.0,
+            1e9,
+        ];
+        values.extend((-2_000..270_000).map(|i| i as f32 * 1e-3));
+        for v in values {
+            assert_eq!(colour_byte(v), v.clamp(0.0, 255.0) as u8, "{v}");
+        }
     }
 }

@@ -19,7 +19,7 @@
 //!   pixels at edges) are marked [`invalid::DISAGREEMENT`] here, before they can pollute the
 //!   averaged unit phasor of their neighbours.
 
-use super::fastmath::phase_0_tau;
+use super::fastmath::{phase_0_tau, whole_to_byte};
 use super::solver::FactoredSolve;
 use super::{invalid, DecodeOutput, DecodeParams, WindowSolver, BAND_ROWS};
 use crate::frame::Frame;
@@ -279,7 +279,7 @@ fn solve_row<F: Borrow<Frame>>(
         im[x] *= keep;
     }
     for (flag, &reason) in row.flags[..w].iter_mut().zip(&*reasons) {
-        *flag = reason as u8;
+        *flag = whole_to_byte(reason);
     }
 }
 

@@ -20,6 +20,7 @@
 //!   shows up the same way. The rounding margin, support and order-jump tests carry the rest.
 //!   A wrong depth is worse than a missing one.
 
+use super::fastmath::whole_to_byte;
 use super::smooth::unit_angle;
 use super::{invalid, DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
 use rayon::prelude::*;
@@ -183,7 +184,7 @@ fn chebyshev_row(c: &Consts<'_>, row: Row<'_>) {
         coord[x] = combined;
     }
     for x in 0..w {
-        let reason = flags[x] | added[x] as u8;
+        let reason = flags[x] | whole_to_byte(added[x]);
         flags[x] = reason;
         if reason != 0 {
             coord[x] = f32::NAN;

@@ -16,6 +16,7 @@
 //! The per-pixel work is then a Horner polynomial, one division and three products in `f32`, in
 //! a loop over structure-of-array rows that vectorises.
 
+use crate::decode::fastmath::colour_byte;
 use crate::geometry::LensModel;
 use crate::pattern::Axis;
 use nalgebra::Vector3;
@@ -293,7 +294,7 @@ fn write_outputs(rx: &[f32], ry: &[f32], input: &DecodedRow<'_>, depth: &[f32], 
         }
     }
     let nc = input.channels;
-    let gray = |ch: usize, x: usize| input.colour[ch * w + x].clamp(0.0, 255.0) as u8;
+    let gray = |ch: usize, x: usize| colour_byte(input.colour[ch * w + x]);
     let colours = &mut out.colours.as_flattened_mut()[..3 * w];
     if nc == 3 {
         for (x, c) in colours.chunks_exact_mut(3).enumerate() {
