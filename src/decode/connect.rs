@@ -13,6 +13,7 @@
 //! Bit [`RIGHT`] links a pixel to its right neighbour, bit [`DOWN`] to the one below. Smoothing
 //! only runs for CPS, so there are always exactly three phase planes.
 
+use super::fastmath::{max_or_second as max, min_or_second as min};
 use super::{DecodeOutput, SmoothingParams};
 use rayon::prelude::*;
 use std::f32::consts::TAU;
@@ -22,8 +23,9 @@ pub(crate) const DOWN: u8 = 2;
 
 #[inline]
 fn wrapped_diff(a: f32, b: f32) -> f32 {
+    // NaN phases give NaN, which fails every `<=` test.
     let d = (a - b).abs();
-    d.min(TAU - d)
+    min(d, TAU - d)
 }
 
 pub(crate) fn compute_connectivity(out: &mut DecodeOutput, params: &SmoothingParams) {
@@ -102,18 +104,19 @@ fn link_rows<'a>(
         let (ra, ga, ba) = (col(a, 0, da), col(a, 1, da), col(a, 2, da));
         let (rb, gb, bb) = (col(b, 0, db), col(b, 1, db), col(b, 2, db));
         for x in 0..len {
-            let (red1, blue1) = (ra[x].max(0.0), ba[x].max(0.0));
-            let (red2, blue2) = (rb[x].max(0.0), bb[x].max(0.0));
-            let s1 = red1 + ga[x].max(0.0) + blue1;
-            let s2 = red2 + gb[x].max(0.0) + blue2;
+            // Negative (and NaN) colour counts as 0.
+            let (red1, blue1) = (max(ra[x], 0.0), max(ba[x], 0.0));
+            let (red2, blue2) = (max(rb[x], 0.0), max(bb[x], 0.0));
+            let s1 = red1 + max(ga[x], 0.0) + blue1;
+            let s2 = red2 + max(gb[x], 0.0) + blue2;
             // Chromaticity noise grows as 1/brightness: allow 6 gray levels on top of `chroma`.
-            let tol = chroma * s1 * s2 + 6.0 * s1.max(s2);
+            let tol = chroma * s1 * s2 + 6.0 * max(s1, s2);
             let ok = (sup_a[x] > 0.0)
                 & (sup_b[x] > 0.0)
                 & (wrapped_diff(a0[x], b0[x]) <= max_phase)
                 & (wrapped_diff(a1[x], b1[x]) <= max_phase)
                 & (wrapped_diff(a2[x], b2[x]) <= max_phase)
-                & ((s1 - s2).abs() <= ratio * s1.max(s2) + 6.0)
+                & ((s1 - s2).abs() <= ratio * max(s1, s2) + 6.0)
                 & ((red1 * s2 - red2 * s1).abs() <= tol)
                 & ((blue1 * s2 - blue2 * s1).abs() <= tol);
             bits[x] |= if ok { bit } else { 0 };
@@ -121,13 +124,13 @@ fn link_rows<'a>(
     } else {
         let (ya, yb) = (col(a, 0, da), col(b, 0, db));
         for x in 0..len {
-            let (s1, s2) = (ya[x].max(0.0), yb[x].max(0.0));
+            let (s1, s2) = (max(ya[x], 0.0), max(yb[x], 0.0));
             let ok = (sup_a[x] > 0.0)
                 & (sup_b[x] > 0.0)
                 & (wrapped_diff(a0[x], b0[x]) <= max_phase)
                 & (wrapped_diff(a1[x], b1[x]) <= max_phase)
                 & (wrapped_diff(a2[x], b2[x]) <= max_phase)
-                & ((s1 - s2).abs() <= ratio * s1.max(s2) + 6.0);
+                & ((s1 - s2).abs() <= ratio * max(s1, s2) + 6.0);
             bits[x] |= if ok { bit } else { 0 };
         }
     }

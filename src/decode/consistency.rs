@@ -78,12 +78,13 @@ fn pair_jumps(here: &[f32], there: &[f32], links: &[u8], bit: u8, limit: f32, ju
     "x86_64+sse4.1"
 ))]
 fn apply_jumps(flags: &mut [u8], coord: &mut [f32], jump: &[u8]) {
-    for x in 0..flags.len() {
+    let n = flags.len();
+    let (coord, jump) = (&mut coord[..n], &jump[..n]);
+    for x in 0..n {
         let j = jump[x];
         flags[x] |= j * invalid::ORDER_JUMP;
-        if j != 0 {
-            coord[x] = f32::NAN;
-        }
+        // A select rather than a conditional store, so the loop vectorises.
+        coord[x] = if j != 0 { f32::NAN } else { coord[x] };
     }
 }
 

@@ -7,16 +7,42 @@
 //! [`whole_to_byte`] narrows `f32` to `u8` without Rust's saturating `as` cast, which LLVM
 //! compiles to a scalar conversion per lane on x86 (about seven instructions each) and which
 //! therefore kept whole loops from vectorising.
+//!
+//! [`max_or_second`] and [`min_or_second`] are `max`/`min` as one x86 instruction. Rust's
+//! `f32::max` ignores a NaN operand (IEEE maxNum), which x86 vector code implements with a compare
+//! and a blend around each `maxps`; where a NaN operand cannot occur, or where taking the second
+//! operand is what the caller wants, these save the two extra instructions.
 
 use std::f32::consts::{FRAC_PI_2, PI, TAU};
 
-/// `atan2(y, x)` in `(−π, π]`, max error about 1e-5 rad. Returns 0 for `(0, 0)`.
+/// `a` if `a > b`, else `b` (so `b` when either is NaN): x86's `maxps`.
+#[inline(always)]
+pub fn max_or_second(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// `a` if `a < b`, else `b` (so `b` when either is NaN): x86's `minps`.
+#[inline(always)]
+pub fn min_or_second(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+/// `atan2(y, x)` in `(−π, π]`, max error about 1e-5 rad. Returns 0 for `(0, 0)`; unspecified
+/// for NaN.
 #[inline]
 pub fn atan2(y: f32, x: f32) -> f32 {
     let ax = x.abs();
     let ay = y.abs();
-    let big = ax.max(ay);
-    let small = ax.min(ay);
+    let big = max_or_second(ax, ay);
+    let small = min_or_second(ax, ay);
     let t = if big > 0.0 { small / big } else { 0.0 };
     let t2 = t * t;
     let p = t
@@ -84,6 +110,18 @@ mod tests {
         assert!(worst < 2e-5, "worst error {worst}");
         assert_eq!(atan2(0.0, 0.0), 0.0);
         assert!((phase_0_tau(-1.0, 1.0) - 7.0 * PI / 4.0).abs() < 2e-5);
+    }
+
+    #[test]
+    fn max_and_min_take_the_second_operand_on_nan() {
+        assert_eq!(max_or_second(2.0, -1.0), 2.0);
+        assert_eq!(max_or_second(-1.0, 2.0), 2.0);
+        assert_eq!(min_or_second(2.0, -1.0), -1.0);
+        assert_eq!(min_or_second(-1.0, 2.0), -1.0);
+        assert_eq!(max_or_second(f32::NAN, 3.0), 3.0);
+        assert!(max_or_second(3.0, f32::NAN).is_nan());
+        assert_eq!(min_or_second(f32::NAN, 3.0), 3.0);
+        assert!(min_or_second(3.0, f32::NAN).is_nan());
     }
 
     #[test]
