@@ -202,6 +202,10 @@ fn solve_row<F: Borrow<Frame>>(
             row.colour[c * stride..c * stride + w].copy_from_slice(&u[c * w..(c + 1) * w]);
         }
     }
+    if chebyshev && nf == 3 {
+        derive_chebyshev3(solver, params, w, u, saturated, row);
+        return;
+    }
     for f in 0..nf {
         let cu = &u[solver.cos_unknown(f) * w..(solver.cos_unknown(f) + 1) * w];
         let sv = &u[(solver.cos_unknown(f) + 1) * w..(solver.cos_unknown(f) + 2) * w];
@@ -212,41 +216,10 @@ fn solve_row<F: Borrow<Frame>>(
             amp[x] = (cu[x] * cu[x] + sv[x] * sv[x]).sqrt();
         }
     }
-    if chebyshev && nf == 3 {
-        let at = |f: usize, x: usize| {
-            let c = solver.cos_unknown(f);
-            (u[c * w + x], u[(c + 1) * w + x])
-        };
-        let noise2 = params.camera_noise_gray * params.camera_noise_gray;
-        let g = &solver.noise_gain;
-        let (g0, g1, g2) = (g[0] * g[0], 4.0 * g[1] * g[1], g[2] * g[2]);
-        let limit = params.max_disagreement_chi2 * noise2;
-        for x in 0..w {
-            let (c0, s0) = at(0, x);
-            let (c1, s1) = at(1, x);
-            let (c2, s2) = at(2, x);
-            // p = z0·conj(z1) and q = z1·conj(z2) both estimate a0·a1·e^{i f1 x} (eq. 13 and its
-            // sine form); the unit phasor is their sum.
-            let (pr, pi) = (c0 * c1 + s0 * s1, s0 * c1 - c0 * s1);
-            let (qr, qi) = (c1 * c2 + s1 * s2, s1 * c2 - c1 * s2);
-            row.re[x] = pr + qr;
-            row.im[x] = pi + qi;
-            // Their angle difference φ0 − 2φ1 + φ2 must vanish up to noise of variance
-            // σ²·(g0²/a0² + 4g1²/a1² + g2²/a2²): the two Chebyshev equations agree. Motion inside
-            // the window and mixed pixels break it. Tested on sin² of the angle, no atan2.
-            let (tr, ti) = (pr * qr + pi * qi, pi * qr - pr * qi);
-            let sin2 = ti * ti / (tr * tr + ti * ti);
-            let (a0, a1, a2) = (c0 * c0 + s0 * s0, c1 * c1 + s1 * s1, c2 * c2 + s2 * s2);
-            let var_over_noise = g0 / a0 + g1 / a1 + g2 / a2;
-            let bad = (tr < 0.0) | (sin2 > limit * var_over_noise);
-            inconsistent[x] = f32::from(u8::from(bad));
-        }
-    } else {
-        // No unit phasor and no Chebyshev check for this window.
-        row.re[..w].fill(0.0);
-        row.im[..w].fill(0.0);
-        inconsistent.fill(0.0);
-    }
+    // No unit phasor and no Chebyshev check for this window.
+    row.re[..w].fill(0.0);
+    row.im[..w].fill(0.0);
+    inconsistent.fill(0.0);
     let min_amplitude = params.min_amplitude;
     // The reasons as f32 sums of distinct powers of two, so this loop stays in f32 lanes and
     // vectorises; narrowed to bytes in the next.
@@ -283,47 +256,142 @@ fn solve_row<F: Borrow<Frame>>(
     }
 }
 
+/// The rest of stage 1 for a CPS window of three frequencies, in one loop over the pixels of
+/// a chunk: phases and amplitudes, the Chebyshev unit phasor and its check, the reasons, the
+/// support and the flag bytes. `u` holds the solved unknowns; `saturated` is 1 where a frame
+/// saturated.
+#[inline(always)]
+fn derive_chebyshev3(
+    solver: &WindowSolver,
+    params: &DecodeParams,
+    w: usize,
+    u: &[f32],
+    saturated: &[f32],
+    row: RowOut<'_>,
+) {
+    let plane = |q: usize| &u[q * w..(q + 1) * w];
+    let (cu0, sv0) = (
+        plane(solver.cos_unknown(0)),
+        plane(solver.cos_unknown(0) + 1),
+    );
+    let (cu1, sv1) = (
+        plane(solver.cos_unknown(1)),
+        plane(solver.cos_unknown(1) + 1),
+    );
+    let (cu2, sv2) = (
+        plane(solver.cos_unknown(2)),
+        plane(solver.cos_unknown(2) + 1),
+    );
+    let stride = row.stride;
+    let [ph0, ph1, ph2] = three_planes(row.phase, stride, w);
+    let [am0, am1, am2] = three_planes(row.amp, stride, w);
+    let (re, im) = (&mut row.re[..w], &mut row.im[..w]);
+    let (support, flags) = (&mut row.support[..w], &mut row.flags[..w]);
+    let saturated = &saturated[..w];
+    let noise2 = params.camera_noise_gray * params.camera_noise_gray;
+    let g = &solver.noise_gain;
+    let (g0, g1, g2) = (g[0] * g[0], 4.0 * g[1] * g[1], g[2] * g[2]);
+    let limit = params.max_disagreement_chi2 * noise2;
+    let min_amplitude = params.min_amplitude;
+    let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
+    for x in 0..w {
+        let (c0, s0) = (cu0[x], sv0[x]);
+        let (c1, s1) = (cu1[x], sv1[x]);
+        let (c2, s2) = (cu2[x], sv2[x]);
+        ph0[x] = phase_0_tau(s0, c0);
+        ph1[x] = phase_0_tau(s1, c1);
+        ph2[x] = phase_0_tau(s2, c2);
+        let (a0, a1, a2) = (c0 * c0 + s0 * s0, c1 * c1 + s1 * s1, c2 * c2 + s2 * s2);
+        let (m0, m1, m2) = (a0.sqrt(), a1.sqrt(), a2.sqrt());
+        am0[x] = m0;
+        am1[x] = m1;
+        am2[x] = m2;
+        // p = z0·conj(z1) and q = z1·conj(z2) both estimate a0·a1·e^{i f1 x} (eq. 13 and its
+        // sine form); the unit phasor is their sum.
+        let (pr, pi) = (c0 * c1 + s0 * s1, s0 * c1 - c0 * s1);
+        let (qr, qi) = (c1 * c2 + s1 * s2, s1 * c2 - c1 * s2);
+        // Their angle difference φ0 − 2φ1 + φ2 must vanish up to noise of variance
+        // σ²·(g0²/a0² + 4g1²/a1² + g2²/a2²): the two Chebyshev equations agree. Motion inside
+        // the window and mixed pixels break it. Tested on sin² of the angle, no atan2.
+        let (tr, ti) = (pr * qr + pi * qi, pi * qr - pr * qi);
+        let sin2 = ti * ti / (tr * tr + ti * ti);
+        let var_over_noise = g0 / a0 + g1 / a1 + g2 / a2;
+        let inconsistent = (tr < 0.0) | (sin2 > limit * var_over_noise);
+        // A NaN amplitude counts as low.
+        let min_amp = m0.min(m1).min(m2);
+        let low = min_amp.is_nan() | (min_amp < min_amplitude);
+        // The reasons as an f32 sum of distinct powers of two, so the loop stays in f32 lanes.
+        let reason = bit(low, invalid::LOW_AMPLITUDE)
+            + bit(saturated[x] > 0.0, invalid::SATURATED)
+            + bit(inconsistent, invalid::DISAGREEMENT);
+        let keep = if reason == 0.0 { 1.0 } else { 0.0 };
+        support[x] = keep;
+        re[x] = (pr + qr) * keep;
+        im[x] = (pi + qi) * keep;
+        flags[x] = whole_to_byte(reason);
+    }
+}
+
+/// The first `w` values of planes 0, 1 and 2 of `planes`, `stride` apart.
+#[inline(always)]
+fn three_planes(planes: &mut [f32], stride: usize, w: usize) -> [&mut [f32]; 3] {
+    let (p0, rest) = planes.split_at_mut(stride);
+    let (p1, p2) = rest.split_at_mut(stride);
+    [&mut p0[..w], &mut p1[..w], &mut p2[..w]]
+}
+
 /// `u = M⁺·obs` through the factors of [`FactoredSolve`], for planes of `w` values: nine
 /// observation planes (frame k, camera channel j at plane 3k + j) in; the three offsets (the
 /// colour) to `offsets`, the six cosine and sine unknowns to their planes 3–8 of `u` (planes
-/// 0–2 are not written). The observation planes of the first two frames are overwritten with
-/// the closed form's cosine and sine terms.
+/// 0–2 are not written). One loop: per pixel the closed form per camera channel, then the
+/// unmixing of the cosine and the sine terms, in registers.
 #[inline(always)]
 fn solve_factored(
     factored: &FactoredSolve,
     w: usize,
-    obs: &mut [f32],
+    obs: &[f32],
     offsets: [&mut [f32]; 3],
     u: &mut [f32],
 ) {
-    let [b0, b1, b2] = factored.closed_form;
-    let (first, rest) = obs.split_at_mut(3 * w);
-    let (second, third) = rest.split_at_mut(3 * w);
-    for j in 0..3 {
-        let plane = j * w..(j + 1) * w;
-        let (s0, s1, s2) = (
-            &mut first[plane.clone()],
-            &mut second[plane.clone()],
-            &third[plane.clone()],
+    let [offset_row, cos_row, sin_row] = factored.closed_form;
+    // Row of `A⁻¹` that gives each slot's U and V.
+    let m: [[f32; 3]; 3] = factored.channel_of_slot.map(|i| factored.unmix[i]);
+    // Plane 3k + j holds frame k, camera channel j; each sliced to `w` so that the loop has no
+    // bounds checks and vectorises.
+    let (frame0, rest) = obs.split_at(3 * w);
+    let (frame1, rest) = rest.split_at(3 * w);
+    let frame2 = &rest[..3 * w];
+    let (r0, g0, bl0) = (&frame0[..w], &frame0[w..2 * w], &frame0[2 * w..3 * w]);
+    let (r1, g1, bl1) = (&frame1[..w], &frame1[w..2 * w], &frame1[2 * w..3 * w]);
+    let (r2, g2, bl2) = (&frame2[..w], &frame2[w..2 * w], &frame2[2 * w..3 * w]);
+    let [o0, o1, o2] = offsets;
+    let (o0, o1, o2) = (&mut o0[..w], &mut o1[..w], &mut o2[..w]);
+    let (_, unknowns) = u.split_at_mut(3 * w);
+    let (u0, rest) = unknowns.split_at_mut(w);
+    let (v0, rest) = rest.split_at_mut(w);
+    let (u1, rest) = rest.split_at_mut(w);
+    let (v1, rest) = rest.split_at_mut(w);
+    let (u2, v2) = rest.split_at_mut(w);
+    let v2 = &mut v2[..w];
+    for x in 0..w {
+        let dot = |b: [f32; 3], (s0, s1, s2): (f32, f32, f32)| b[0] * s0 + b[1] * s1 + b[2] * s2;
+        // Camera channel j's samples in frames 0, 1, 2.
+        let (c0, c1, c2) = (
+            (r0[x], r1[x], r2[x]),
+            (g0[x], g1[x], g2[x]),
+            (bl0[x], bl1[x], bl2[x]),
         );
-        let offset = &mut offsets[j][..w];
-        for x in 0..w {
-            let (v0, v1, v2) = (s0[x], s1[x], s2[x]);
-            offset[x] = b0[0] * v0 + b0[1] * v1 + b0[2] * v2;
-            s0[x] = b1[0] * v0 + b1[1] * v1 + b1[2] * v2;
-            s1[x] = b2[0] * v0 + b2[1] * v1 + b2[2] * v2;
-        }
-    }
-    // (A·U)_j now in `first`, (A·V)_j in `second`: unmix into the slots' U and V planes.
-    for (i, &slot) in factored.slot_of_channel.iter().enumerate() {
-        let m = factored.unmix[i];
-        for (terms, unknown) in [(&*first, 3 + 2 * slot), (&*second, 4 + 2 * slot)] {
-            let (t0, t1, t2) = (&terms[..w], &terms[w..2 * w], &terms[2 * w..3 * w]);
-            let out = &mut u[unknown * w..(unknown + 1) * w];
-            for x in 0..w {
-                out[x] = m[0] * t0[x] + m[1] * t1[x] + m[2] * t2[x];
-            }
-        }
+        o0[x] = dot(offset_row, c0);
+        o1[x] = dot(offset_row, c1);
+        o2[x] = dot(offset_row, c2);
+        let cos_terms = (dot(cos_row, c0), dot(cos_row, c1), dot(cos_row, c2));
+        let sin_terms = (dot(sin_row, c0), dot(sin_row, c1), dot(sin_row, c2));
+        u0[x] = dot(m[0], cos_terms);
+        v0[x] = dot(m[0], sin_terms);
+        u1[x] = dot(m[1], cos_terms);
+        v1[x] = dot(m[1], sin_terms);
+        u2[x] = dot(m[2], cos_terms);
+        v2[x] = dot(m[2], sin_terms);
     }
 }
 
@@ -364,12 +432,11 @@ mod tests {
                 for (q, plane) in expected.chunks_mut(w).enumerate() {
                     dot_planes::<9>(&solver.pinv[q * 9..(q + 1) * 9], &obs, plane);
                 }
-                let mut scratch = obs.clone();
                 let mut got = vec![0.0; 9 * w];
                 let mut offsets = vec![0.0; 3 * w];
                 let (o0, rest) = offsets.split_at_mut(w);
                 let (o1, o2) = rest.split_at_mut(w);
-                solve_factored(&factored, w, &mut scratch, [o0, o1, o2], &mut got);
+                solve_factored(&factored, w, &obs, [o0, o1, o2], &mut got);
                 got[..3 * w].copy_from_slice(&offsets);
                 for (i, (g, e)) in got.iter().zip(&expected).enumerate() {
                     // Both are f32 sums of nine products (the factored one in two rounds of

@@ -63,6 +63,8 @@ pub struct FactoredSolve {
     pub unmix: [[f32; 3]; 3],
     /// Frequency slot carried by each projector channel.
     pub slot_of_channel: [usize; 3],
+    /// The projector channel carrying each frequency slot (the inverse permutation).
+    pub channel_of_slot: [usize; 3],
 }
 
 impl FactoredSolve {
@@ -120,6 +122,14 @@ impl FactoredSolve {
         if (product - pinv).amax() > 1e-9 * scale {
             return None;
         }
+        // Three channels carry the three slots, one each (a match of the product implies it).
+        let mut channel_of_slot = [usize::MAX; 3];
+        for (i, &slot) in slot_of_channel.iter().enumerate() {
+            channel_of_slot[slot] = i;
+        }
+        if channel_of_slot.contains(&usize::MAX) {
+            return None;
+        }
         let to_f32 = |m: &nalgebra::Matrix3<f64>| {
             std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)] as f32))
         };
@@ -127,6 +137,7 @@ impl FactoredSolve {
             closed_form: to_f32(&closed_form),
             unmix: to_f32(&unmix),
             slot_of_channel,
+            channel_of_slot,
         })
     }
 }
