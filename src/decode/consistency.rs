@@ -20,35 +20,19 @@ pub(crate) fn flag_order_jumps(out: &mut DecodeOutput, half_period_px: f32) {
         .par_chunks_mut(w)
         .enumerate()
         .for_each(|(y, jump)| {
-            let row = &coord[y * w..(y + 1) * w];
-            let links = &connect[y * w..(y + 1) * w];
-            jump.fill(0);
-            // Right and left neighbours share the RIGHT link of the left pixel of each pair.
-            pair_jumps(
-                &row[..w - 1],
-                &row[1..],
-                &links[..w - 1],
-                RIGHT,
-                half_period_px,
-                &mut jump[..w - 1],
-            );
-            pair_jumps(
-                &row[1..],
-                &row[..w - 1],
-                &links[..w - 1],
-                RIGHT,
-                half_period_px,
-                &mut jump[1..],
-            );
-            if y + 1 < h {
-                let below = &coord[(y + 1) * w..(y + 2) * w];
-                pair_jumps(row, below, links, DOWN, half_period_px, jump);
-            }
-            if y > 0 {
-                let above = &coord[(y - 1) * w..y * w];
-                let above_links = &connect[(y - 1) * w..y * w];
-                pair_jumps(row, above, above_links, DOWN, half_period_px, jump);
-            }
+            let rows = |y: usize| y * w..(y + 1) * w;
+            // The first and last rows stand in for their missing neighbour row: a pixel is never
+            // far from itself.
+            let above = if y > 0 { rows(y - 1) } else { rows(y) };
+            let below = if y + 1 < h { rows(y + 1) } else { rows(y) };
+            let row = Neighbourhood {
+                here: &coord[rows(y)],
+                links: &connect[rows(y)],
+                above: &coord[above.clone()],
+                above_links: &connect[above],
+                below: &coord[below],
+            };
+            row_jumps(&row, half_period_px, jump);
         });
     out.invalid
         .par_chunks_mut(w)
@@ -57,19 +41,67 @@ pub(crate) fn flag_order_jumps(out: &mut DecodeOutput, half_period_px: f32) {
         .for_each(|((flags, coord), jump)| apply_jumps(flags, coord, jump));
 }
 
-/// `jump[x] |= 1` where `links[x]` has `bit` and `here[x]`, `there[x]` are both valid and more
-/// than `limit` apart (NaN compares false, so invalid pixels never count).
+/// One row of coordinates with the links and coordinates around it.
+struct Neighbourhood<'a> {
+    here: &'a [f32],
+    /// The row's links: `RIGHT` to the next pixel, `DOWN` to the row below.
+    links: &'a [u8],
+    above: &'a [f32],
+    /// The links of the row above (its `DOWN` bits link to this row).
+    above_links: &'a [u8],
+    below: &'a [f32],
+}
+
+/// Whether pixel `x` of `row` and a linked neighbour are more than `limit` apart (NaN compares
+/// false, so invalid pixels never count). Used at the row's ends.
+fn pixel_jumps(row: &Neighbourhood<'_>, x: usize, limit: f32) -> u8 {
+    let w = row.here.len();
+    let c = row.here[x];
+    let far = |other: f32| (c - other).abs() > limit;
+    let left = x > 0 && row.links[x - 1] & RIGHT != 0 && far(row.here[x - 1]);
+    let right = x + 1 < w && row.links[x] & RIGHT != 0 && far(row.here[x + 1]);
+    let down = row.links[x] & DOWN != 0 && far(row.below[x]);
+    let up = row.above_links[x] & DOWN != 0 && far(row.above[x]);
+    u8::from(left | right | down | up)
+}
+
+/// `jump[x] = 1` where pixel `x` is linked to its left, right, upper or lower neighbour and the
+/// two coordinates are more than `limit` apart, else 0: the four tests in one pass, the inner
+/// pixels in a loop that vectorises.
 #[multiversion::multiversion(targets(
     "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
     "x86_64+avx2+fma",
     "x86_64+sse4.1"
 ))]
-fn pair_jumps(here: &[f32], there: &[f32], links: &[u8], bit: u8, limit: f32, jump: &mut [u8]) {
-    for x in 0..jump.len() {
-        let linked = links[x] & bit != 0;
-        let far = (here[x] - there[x]).abs() > limit;
-        jump[x] |= u8::from(linked & far);
+fn row_jumps(row: &Neighbourhood<'_>, limit: f32, jump: &mut [u8]) {
+    let w = row.here.len();
+    if w < 3 {
+        for (x, j) in jump.iter_mut().enumerate().take(w) {
+            *j = pixel_jumps(row, x, limit);
+        }
+        return;
     }
+    // Pixel x = i + 1 for i in 0..n: its left neighbour at i, its right one at i + 2.
+    let n = w - 2;
+    let (left, here, right) = (&row.here[..n], &row.here[1..=n], &row.here[2..n + 2]);
+    let (left_links, links) = (&row.links[..n], &row.links[1..=n]);
+    let (above, above_links, below) = (
+        &row.above[1..=n],
+        &row.above_links[1..=n],
+        &row.below[1..=n],
+    );
+    let inner = &mut jump[1..=n];
+    for i in 0..n {
+        let c = here[i];
+        let far = |other: f32| (c - other).abs() > limit;
+        let j = ((left_links[i] & RIGHT != 0) & far(left[i]))
+            | ((links[i] & RIGHT != 0) & far(right[i]))
+            | ((links[i] & DOWN != 0) & far(below[i]))
+            | ((above_links[i] & DOWN != 0) & far(above[i]));
+        inner[i] = u8::from(j);
+    }
+    jump[0] = pixel_jumps(row, 0, limit);
+    jump[w - 1] = pixel_jumps(row, w - 1, limit);
 }
 
 #[multiversion::multiversion(targets(
