@@ -6,6 +6,9 @@
 //! often where the edge-aware average leaked across an edge whose phases happened to match).
 //! Which one cannot be told locally, so both are marked [`invalid::ORDER_JUMP`]: a wrong depth is
 //! worse than a missing one.
+//!
+//! How: one pass per row tests each pixel against its four linked neighbours and writes a jump
+//! byte; a second pass, once every row is tested, marks the pixels and clears their coordinates.
 
 use super::connect::{DOWN, RIGHT};
 use super::{invalid, DecodeOutput};
