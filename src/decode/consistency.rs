@@ -155,4 +155,58 @@ mod tests {
         assert_eq!(marked, vec![3, w + 2, w + 3, w + 4, 2 * w + 3]);
         assert!(out.coordinate_px[w + 3].is_nan());
     }
+
+    /// Every pixel's jump by the definition: a linked neighbour more than `limit` away.
+    fn jumps_by_definition(coord: &[f32], links: &[u8], w: usize, h: usize, limit: f32) -> Vec<u8> {
+        let far = |a: usize, b: usize| (coord[a] - coord[b]).abs() > limit;
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let left = x > 0 && links[i - 1] & RIGHT != 0 && far(i, i - 1);
+                let right = x + 1 < w && links[i] & RIGHT != 0 && far(i, i + 1);
+                let up = y > 0 && links[i - w] & DOWN != 0 && far(i, i - w);
+                let down = y + 1 < h && links[i] & DOWN != 0 && far(i, i + w);
+                u8::from(left | right | up | down)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_one_pass_check_equals_the_definition_at_every_size() {
+        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
+        let solver =
+            WindowSolver::new(&seq, &[0, 1, 2], &crate::color::CrossTalk::paper()).unwrap();
+        // Pseudo-random coordinates (some NaN, some a fringe off) and links, by a 64-bit LCG.
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 33) as u32
+        };
+        for (w, h) in [(1, 1), (1, 4), (2, 3), (3, 2), (17, 5), (64, 9)] {
+            let mut out = DecodeOutput::new(w, h, &solver);
+            for i in 0..w * h {
+                let r = next();
+                out.coordinate_px[i] = match r % 10 {
+                    0 => f32::NAN,
+                    1 | 2 => 128.06 + (r % 7) as f32,
+                    _ => 100.0 + (r % 7) as f32,
+                };
+                out.connect[i] = (next() % 4) as u8;
+            }
+            let limit = 14.03;
+            let expected = jumps_by_definition(&out.coordinate_px, &out.connect, w, h, limit);
+            flag_order_jumps(&mut out, limit);
+            assert_eq!(out.jump, expected, "{w}×{h}");
+            for (i, &j) in expected.iter().enumerate() {
+                assert_eq!(
+                    out.invalid[i] & invalid::ORDER_JUMP != 0,
+                    j != 0,
+                    "{w}×{h} at {i}"
+                );
+                assert!(j == 0 || out.coordinate_px[i].is_nan());
+            }
+        }
+    }
 }

@@ -129,7 +129,7 @@ mod tests {
         for v in 0..=255u8 {
             assert_eq!(whole_to_byte(f32::from(v)), v);
         }
-        // Every float in and around the byte range, the limits and the special values.
+        // Floats 0.001 apart across and around the byte range, the limits and special values.
         let mut values = vec![
             f32::NAN,
             -f32::NAN,
