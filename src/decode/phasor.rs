@@ -81,10 +81,10 @@ pub(crate) fn solve_phasors<F: Borrow<Frame> + Sync>(
 /// Pixels per column chunk of stage 1.
 pub(crate) const CHUNK_PX: usize = 256;
 
-/// Scratch floats per band of stage 1: one chunk of observation and unknown planes and three
-/// flag rows.
+/// Scratch floats per band of stage 1: one chunk of observation and unknown planes and a row
+/// of saturation flags.
 pub(crate) fn scratch_len(solver: &WindowSolver) -> usize {
-    CHUNK_PX * (solver.observations + solver.unknowns + 3)
+    CHUNK_PX * (solver.observations + solver.unknowns + 1)
 }
 
 struct RowOut<'a> {
@@ -122,8 +122,7 @@ fn solve_row<F: Borrow<Frame>>(
     let n_u = solver.unknowns;
     let (obs, rest) = scratch.split_at_mut(n_obs * w);
     let (u, rest) = rest.split_at_mut(n_u * w);
-    let (saturated, rest) = rest.split_at_mut(w);
-    let inconsistent = &mut rest[..w];
+    let saturated = &mut rest[..w];
     saturated.fill(0.0);
     let sat_level = params.saturation_level;
 
@@ -219,13 +218,11 @@ fn solve_row<F: Borrow<Frame>>(
     // No unit phasor and no Chebyshev check for this window.
     row.re[..w].fill(0.0);
     row.im[..w].fill(0.0);
-    inconsistent.fill(0.0);
     let min_amplitude = params.min_amplitude;
     // The reasons as f32 sums of distinct powers of two, so this loop stays in f32 lanes and
     // vectorises; narrowed to bytes in the next.
     let reasons = &mut saturated[..w];
-    let (re, im, support) = (&mut row.re[..w], &mut row.im[..w], &mut row.support[..w]);
-    let inconsistent = &inconsistent[..w];
+    let support = &mut row.support[..w];
     // The smallest amplitude per pixel, into the unknowns' first plane (no longer needed).
     let min_amps = &mut u[..w];
     min_amps.copy_from_slice(&row.amp[..w]);
@@ -242,14 +239,9 @@ fn solve_row<F: Borrow<Frame>>(
         // A NaN amplitude counts as low.
         let low = min_amp.is_nan() | (min_amp < min_amplitude);
         let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
-        let reason = bit(low, invalid::LOW_AMPLITUDE)
-            + bit(reasons[x] > 0.0, invalid::SATURATED)
-            + bit(inconsistent[x] > 0.0, invalid::DISAGREEMENT);
+        let reason = bit(low, invalid::LOW_AMPLITUDE) + bit(reasons[x] > 0.0, invalid::SATURATED);
         reasons[x] = reason;
-        let keep = if reason == 0.0 { 1.0 } else { 0.0 };
-        support[x] = keep;
-        re[x] *= keep;
-        im[x] *= keep;
+        support[x] = if reason == 0.0 { 1.0 } else { 0.0 };
     }
     for (flag, &reason) in row.flags[..w].iter_mut().zip(&*reasons) {
         *flag = whole_to_byte(reason);
