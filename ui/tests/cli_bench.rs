@@ -1,4 +1,5 @@
-//! `tremorscan bench`: the table, the verdict and the machine-readable last line.
+//! `tremorscan bench`: the table, the verdict, the binned sizes measured when the PC does not
+//! keep up, and the machine-readable last line.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
 mod common;
@@ -96,6 +97,92 @@ fn bench_prints_stages_and_a_parsable_last_line() {
     );
 }
 
+/// The frame rates of the binning lines: `(bin, width, height, fps, keeps up)`.
+fn binning_lines(stdout: &str) -> Vec<(usize, usize, usize, f64, bool)> {
+    stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("CPU with "))
+        .map(|l| {
+            // "2×2 binning (128×100): 4782.8 frames/s sustainable over 1248 windows; keeps up"
+            let (bin, rest) = l.split_once('×').unwrap();
+            let (size, rest) = rest.split_once("): ").unwrap();
+            let (width, height) = size.split_once('(').unwrap().1.split_once('×').unwrap();
+            let fps = rest.split_whitespace().next().unwrap().parse().unwrap();
+            let verdict = rest.rsplit_once("; ").unwrap().1;
+            (
+                bin.parse().unwrap(),
+                width.parse().unwrap(),
+                height.parse().unwrap(),
+                fps,
+                verdict == "keeps up",
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn bench_measures_binned_sizes_when_the_pc_does_not_keep_up() {
+    // No PC decodes a million windows a second: every binning down to 64×64 is measured, in
+    // order, and the check says that none keeps up.
+    let out = tremorscan(&[
+        "bench",
+        "--width",
+        "256",
+        "--height",
+        "200",
+        "--seconds",
+        "0.2",
+        "--fps",
+        "1000000",
+        "--no-gpu",
+    ]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", text(&out.stderr));
+    assert!(
+        stdout.contains("does NOT keep up with a 1000000 FPS camera at this size"),
+        "{stdout}"
+    );
+    let lines = binning_lines(&stdout);
+    // 4×4 would be 64×50, under the smallest size the check takes.
+    let sizes: Vec<(usize, usize, usize)> = lines.iter().map(|l| (l.0, l.1, l.2)).collect();
+    assert_eq!(sizes, [(2, 128, 100), (3, 85, 66)], "{stdout}");
+    assert!(lines.iter().all(|l| l.3 > 0.0 && !l.4), "{stdout}");
+    assert!(
+        stdout.contains("CPU: no binning up to 3×3 keeps up with a 1000000 FPS camera"),
+        "{stdout}"
+    );
+    assert!(
+        stdout
+            .lines()
+            .last()
+            .unwrap()
+            .starts_with("decode_ms_median="),
+        "{stdout}"
+    );
+
+    // A rate any PC sustains: the verdict says so and no binned size is measured.
+    let out = tremorscan(&[
+        "bench",
+        "--width",
+        "160",
+        "--height",
+        "100",
+        "--seconds",
+        "0.2",
+        "--fps",
+        "1",
+        "--no-gpu",
+    ]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", text(&out.stderr));
+    assert!(
+        stdout.contains("keeps up with a 1 FPS camera at this size"),
+        "{stdout}"
+    );
+    assert!(binning_lines(&stdout).is_empty(), "{stdout}");
+    assert!(!stdout.contains("no binning"), "{stdout}");
+}
+
 #[test]
 fn bench_refuses_a_tiny_image_and_a_bad_duration() {
     let out = tremorscan(&[
@@ -120,4 +207,13 @@ fn bench_refuses_a_tiny_image_and_a_bad_duration() {
         "{}",
         text(&out.stderr)
     );
+    for fps in ["0", "-5", "NaN"] {
+        let out = tremorscan(&["bench", &format!("--fps={fps}")]);
+        assert!(!out.status.success(), "--fps {fps}");
+        assert!(
+            text(&out.stderr).contains("is not a frame rate"),
+            "{}",
+            text(&out.stderr)
+        );
+    }
 }
