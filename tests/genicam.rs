@@ -295,3 +295,45 @@ fn a_link_that_loses_the_packets_is_reported_as_too_slow() {
     }
     assert!(camera.incomplete_buffers() >= 30);
 }
+
+#[test]
+fn binning_reaches_the_camera_and_a_factor_it_cannot_do_is_refused() {
+    let fake = FakeCamera::start("TSCB");
+    let settings = GenicamSettings {
+        binning: Some(2),
+        region: Some([0, 0, 256, 160]),
+        ..GenicamSettings::default()
+    };
+    let mut camera = GenicamCamera::open(&fake.id, &settings).unwrap();
+    let back = camera.readback().unwrap();
+    assert_eq!(back.binning, Some((2, 2)), "{back:?}");
+    assert_eq!(back.region, [0, 0, 256, 160]);
+    let mut frame = Frame::empty();
+    grab_ok(&mut camera, &mut frame);
+    assert_eq!((frame.width, frame.height), (256, 160));
+    drop(camera);
+
+    // 1×1 sets binning back; the camera reports it.
+    let settings = GenicamSettings {
+        binning: Some(1),
+        ..GenicamSettings::default()
+    };
+    let camera = GenicamCamera::open(&fake.id, &settings).unwrap();
+    assert_eq!(camera.readback().unwrap().binning, Some((1, 1)));
+    drop(camera);
+
+    // Beyond the camera's range (the fake camera bins 1 to 16): refused, saying what it can do.
+    let settings = GenicamSettings {
+        binning: Some(64),
+        ..GenicamSettings::default()
+    };
+    match GenicamCamera::open(&fake.id, &settings) {
+        Err(GenicamError::NoBinning {
+            binning: 64,
+            detail,
+            ..
+        }) => assert!(detail.contains("1 to 16"), "{detail}"),
+        Err(e) => panic!("wrong error: {e}"),
+        Ok(_) => panic!("opened with a binning the camera cannot do"),
+    }
+}

@@ -3,9 +3,9 @@
 //! median and p99, the sustainable frame rate, and one machine-readable line.
 //!
 //! When the CPU path does not keep up, the check goes on to measure the camera's binned sizes
-//! (2×2, 3×3, 4×4: the image sizes of a camera binned that way; a GenICam camera is opened at
-//! the size it is configured for) until one keeps up, so that the lab learns what this PC can
-//! do, not only what it cannot.
+//! (2×2, 3×3, 4×4: the image sizes of a camera binned that way, the camera's *Binning* in
+//! Settings) until one keeps up, so that the lab learns what this PC can do, not only what it
+//! cannot.
 
 use crate::gpu_decode::{GpuBackend, GpuContext};
 use anyhow::{Context, Result};

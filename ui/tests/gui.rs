@@ -11,7 +11,7 @@ use tremorscan_ui::gpu_decode::DecoderChoice;
 
 use std::time::{Duration, Instant};
 use tremorscan_ui::gui::app::TremorApp;
-use tremorscan_ui::gui::settings::{Settings, UnwrapChoice};
+use tremorscan_ui::gui::settings::{DeviceChoice, Settings, UnwrapChoice};
 use tremorscan_ui::gui::trial_ui::TrialState;
 use tremorscan_ui::render::orbit::project;
 
@@ -522,5 +522,31 @@ fn applied_settings_persist_to_the_settings_file() {
     assert_eq!(problem, None);
     assert_eq!(saved.unwrap, UnwrapChoice::PerPixel);
     assert_eq!(saved, h.state().settings);
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn the_camera_binning_is_a_setting() {
+    let dir = scratch("binning");
+    let mut h = harness(settings(&dir));
+    h.get_by_label("Settings…").click();
+    h.run_steps(2);
+    h.get_by_label("GenICam camera with a second screen as projector")
+        .click();
+    h.run_steps(2);
+    // A drag value labelled "Binning", starting at none (×1): a click edits it as text.
+    h.get_by_label("Binning").click();
+    h.run_steps(2);
+    h.get_by_label("Binning").type_text("2");
+    h.run_steps(1);
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    h.get_by_label("Apply").click();
+    h.run_steps(3);
+    let device = h.state().settings.device.clone();
+    assert!(
+        matches!(device, DeviceChoice::Camera { binning: 2, .. }),
+        "{device:?}"
+    );
     let _ = std::fs::remove_dir_all(dir);
 }

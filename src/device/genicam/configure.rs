@@ -1,6 +1,7 @@
 //! Configuring a GenICam camera: which pixel format to stream (RGB8, or an 8-bit Bayer format to
-//! demosaic), applying region, exposure, gain and trigger, checking the link's bandwidth, and
-//! reading the settings back. Each failure names the setting and the camera.
+//! demosaic), applying binning (checked against what the camera can do), region, exposure, gain
+//! and trigger, checking the link's bandwidth, and reading the settings back. Each failure names
+//! the setting and the camera.
 
 use super::types::{CameraReadback, GenicamError, GenicamSettings, PixelChoice, TriggerChoice};
 use crate::device::bayer::BayerPattern;
@@ -62,7 +63,7 @@ pub(super) fn choose_format(
     Ok((format_name, bayer))
 }
 
-/// Sets the pixel format, region, exposure, gain and trigger.
+/// Sets the pixel format, binning, region, exposure, gain and trigger.
 pub(super) fn apply(
     camera: &aravis::Camera,
     id: &str,
@@ -73,6 +74,9 @@ pub(super) fn apply(
     camera
         .set_pixel_format_from_string(format_name)
         .map_err(err("pixel format"))?;
+    if let Some(binning) = settings.binning {
+        set_binning(camera, id, binning)?;
+    }
     if let Some([x, y, w, h]) = settings.region {
         camera
             .set_region(x as i32, y as i32, w as i32, h as i32)
@@ -109,6 +113,38 @@ pub(super) fn apply(
         }
     }
     Ok(())
+}
+
+/// Sets `binning`×`binning`, after checking that the camera bins at all and by that factor. A
+/// camera following the SFNC shrinks its maximum region with it (and a full-sensor region with
+/// that); the caller reads the region back for the frame size.
+fn set_binning(camera: &aravis::Camera, id: &str, binning: u32) -> Result<(), GenicamError> {
+    let refuse = |detail: String| GenicamError::NoBinning {
+        id: id.to_string(),
+        binning,
+        detail,
+    };
+    if !camera.is_binning_available().unwrap_or(false) {
+        // 1×1 is what a camera without binning does anyway.
+        return if binning == 1 {
+            Ok(())
+        } else {
+            Err(refuse("it has no binning".to_string()))
+        };
+    }
+    let factor = i32::try_from(binning).map_err(|_| refuse("too large".to_string()))?;
+    for (axis, bounds) in [
+        ("across", camera.x_binning_bounds()),
+        ("down", camera.y_binning_bounds()),
+    ] {
+        let (low, high) = bounds.map_err(|e| refuse(e.message().to_string()))?;
+        if !(low..=high).contains(&factor) {
+            return Err(refuse(format!("it bins {low} to {high} {axis}")));
+        }
+    }
+    camera
+        .set_binning(factor, factor)
+        .map_err(|e| refuse(e.message().to_string()))
 }
 
 /// USB3 Vision cameras state their link bandwidth; refuse a stream that cannot fit.
@@ -158,6 +194,13 @@ pub(super) fn readback(camera: &aravis::Camera, id: &str) -> Result<CameraReadba
         exposure_micros: camera.exposure_time().map_err(err("exposure"))?,
         gain_db: camera.gain().map_err(err("gain"))?,
         region: [x, y, w, h].map(|v| v.max(0) as usize),
+        binning: match camera.is_binning_available() {
+            Ok(true) => {
+                let (dx, dy) = camera.binning().map_err(err("binning"))?;
+                Some((dx.max(0) as u32, dy.max(0) as u32))
+            }
+            _ => None,
+        },
         frame_rate_hz: camera.frame_rate().map_err(err("frame rate"))?,
         trigger_mode: camera
             .string("TriggerMode")

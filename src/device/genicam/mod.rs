@@ -1,10 +1,10 @@
 //! GenICam cameras (USB3 Vision, GigE Vision) through aravis, behind the `genicam` feature.
 //!
 //! [`list_cameras`] enumerates what aravis sees; [`GenicamCamera::open`] opens one by its id,
-//! applies [`GenicamSettings`] (pixel format, exposure, gain, region, frame rate, trigger), hands
-//! the stream a pool of [`GenicamSettings::buffer_count`] buffers and starts acquisition. Each
-//! grab pops one filled buffer, copies (RGB8) or demosaics (Bayer 8-bit) it into the frame, and
-//! gives the buffer back to the pool at once.
+//! applies [`GenicamSettings`] (pixel format, binning, exposure, gain, region, frame rate,
+//! trigger), hands the stream a pool of [`GenicamSettings::buffer_count`] buffers and starts
+//! acquisition. Each grab pops one filled buffer, copies (RGB8) or demosaics (Bayer 8-bit) it
+//! into the frame, and gives the buffer back to the pool at once.
 //!
 //! * Frame numbers are the camera's block ids, unwrapped to 64 bits (GigE Vision's are 16-bit and
 //!   skip 0); incomplete buffers are given back and show as a gap, which the pipeline counts as

@@ -29,6 +29,12 @@ pub enum GenicamError {
         line: String,
         offered: Vec<String>,
     },
+    #[error("camera '{id}' cannot bin its pixels {binning}×{binning}: {detail}")]
+    NoBinning {
+        id: String,
+        binning: u32,
+        detail: String,
+    },
     #[error("camera '{id}': cannot set {what}: {detail}")]
     Setting {
         id: String,
@@ -79,7 +85,11 @@ pub struct GenicamSettings {
     pub pixel: PixelChoice,
     pub exposure_micros: Option<f64>,
     pub gain_db: Option<f64>,
-    /// Region of interest: x, y, width, height in sensor pixels.
+    /// Binning, the same factor across and down (2: each frame pixel sums 2×2 sensor pixels,
+    /// a quarter of the pixels to decode); set before the region, whose pixels are then binned
+    /// ones. A camera that cannot bin by that factor is refused.
+    pub binning: Option<u32>,
+    /// Region of interest: x, y, width, height in sensor pixels (binned pixels with `binning`).
     pub region: Option<[usize; 4]>,
     pub frame_rate_hz: Option<f64>,
     pub trigger: TriggerChoice,
@@ -96,6 +106,7 @@ impl Default for GenicamSettings {
             pixel: PixelChoice::Auto,
             exposure_micros: None,
             gain_db: None,
+            binning: None,
             region: None,
             frame_rate_hz: None,
             trigger: TriggerChoice::FreeRun,
@@ -142,6 +153,8 @@ pub struct CameraReadback {
     pub gain_db: f64,
     /// x, y, width, height in sensor pixels.
     pub region: [usize; 4],
+    /// Binning across and down; `None` where the camera has none.
+    pub binning: Option<(u32, u32)>,
     pub frame_rate_hz: f64,
     /// The `TriggerMode` feature ("On" / "Off").
     pub trigger_mode: String,

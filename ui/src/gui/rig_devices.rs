@@ -41,6 +41,7 @@ pub fn open_camera(choice: &DeviceChoice) -> Result<Box<dyn Camera>> {
         camera_id,
         exposure_micros,
         projector,
+        binning,
         ..
     } = choice
     else {
@@ -56,6 +57,7 @@ pub fn open_camera(choice: &DeviceChoice) -> Result<Box<dyn Camera>> {
     };
     let settings = GenicamSettings {
         exposure_micros: Some(*exposure_micros),
+        binning: Some(*binning),
         // The LightCrafter's trigger out 1, wired to the camera's first input line.
         trigger: match projector {
             ProjectorKind::SecondScreen => TriggerChoice::FreeRun,

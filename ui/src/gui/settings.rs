@@ -30,7 +30,16 @@ pub enum DeviceChoice {
         /// What projects: a plain screen, or a LightCrafter 4500 fed by that screen output.
         #[serde(default)]
         projector: ProjectorKind,
+        /// The camera's binning, the same factor across and down (1: none). 2 leaves a quarter
+        /// of the pixels to decode (`tremorscan bench` says which factor this PC needs); the
+        /// calibration must be made at the same binning.
+        #[serde(default = "no_binning")]
+        binning: u32,
     },
+}
+
+fn no_binning() -> u32 {
+    1
 }
 
 /// The projector of a camera rig.
@@ -56,6 +65,7 @@ impl DeviceChoice {
             monitor: 1,
             hold_refreshes: 2,
             projector: ProjectorKind::SecondScreen,
+            binning: 1,
         }
     }
 }
@@ -197,5 +207,51 @@ mod tests {
         assert_eq!(loaded, Settings::default());
         assert!(message.is_some_and(|m| m.contains("unreadable")));
         let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[test]
+    fn camera_binning_round_trips_and_files_from_before_it_load_without_binning() {
+        let dir = std::env::temp_dir().join(format!("tremorscan-binning-{}", std::process::id()));
+        let path = dir.join("settings.json");
+        let mut camera = DeviceChoice::default_camera();
+        if let DeviceChoice::Camera { binning, .. } = &mut camera {
+            assert_eq!(*binning, 1, "no binning by default");
+            *binning = 2;
+        }
+        let s = Settings {
+            device: camera,
+            ..Settings::default()
+        };
+        save(&path, &s).expect("save");
+        assert_eq!(load(&path), (s.clone(), None));
+        // The same file as an earlier version wrote it: no "binning" key.
+        let mut json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).expect("read")).expect("json");
+        let removed = remove_key(&mut json, "binning");
+        assert!(removed, "the file has a binning key: {json}");
+        std::fs::write(&path, json.to_string()).expect("write");
+        let (loaded, message) = load(&path);
+        assert_eq!(message, None);
+        assert!(
+            matches!(loaded.device, DeviceChoice::Camera { binning: 1, .. }),
+            "{:?}",
+            loaded.device
+        );
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    /// Removes `key` wherever it occurs in `value`; whether it was there.
+    fn remove_key(value: &mut serde_json::Value, key: &str) -> bool {
+        match value {
+            serde_json::Value::Object(map) => {
+                let here = map.remove(key).is_some();
+                map.values_mut()
+                    .fold(here, |found, v| remove_key(v, key) | found)
+            }
+            serde_json::Value::Array(items) => items
+                .iter_mut()
+                .fold(false, |found, v| remove_key(v, key) | found),
+            _ => false,
+        }
     }
 }

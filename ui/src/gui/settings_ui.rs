@@ -48,6 +48,7 @@ fn device_choice_ui(ui: &mut egui::Ui, device: &mut DeviceChoice, replay_path: &
         monitor,
         hold_refreshes,
         projector,
+        binning,
     } = device
     {
         if !cfg!(feature = "genicam") {
@@ -80,6 +81,21 @@ fn device_choice_ui(ui: &mut egui::Ui, device: &mut DeviceChoice, replay_path: &
                         .suffix(" µs"),
                 )
                 .labelled_by(l.id);
+                ui.end_row();
+                let l = ui.label("Binning");
+                ui.add(
+                    egui::DragValue::new(binning)
+                        .range(1..=4)
+                        // Shown as "2×2"; typed as its first number.
+                        .custom_formatter(|v, _| format!("{v}×{v}"))
+                        .custom_parser(|text| text.split('×').next()?.trim().parse().ok()),
+                )
+                .labelled_by(l.id)
+                .on_hover_text(
+                    "2×2: each pixel sums 2×2 sensor pixels, a quarter of the pixels to decode \
+                     (tremorscan bench says which binning this PC keeps up with); calibrate at \
+                     the same binning",
+                );
                 ui.end_row();
                 let l = ui.label("Projector monitor");
                 ui.add(egui::DragValue::new(monitor).range(0..=8))
