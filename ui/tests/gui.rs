@@ -534,7 +534,7 @@ fn the_camera_binning_is_a_setting() {
     h.get_by_label("GenICam camera with a second screen as projector")
         .click();
     h.run_steps(2);
-    // A drag value labelled "Binning", starting at none (×1): a click edits it as text.
+    // A drag value labelled "Binning", starting at none (1×1): a click edits it as text.
     h.get_by_label("Binning").click();
     h.run_steps(2);
     h.get_by_label("Binning").type_text("2");

@@ -115,9 +115,10 @@ pub(super) fn apply(
     Ok(())
 }
 
-/// Sets `binning`×`binning`, after checking that the camera bins at all and by that factor. A
-/// camera following the SFNC shrinks its maximum region with it (and a full-sensor region with
-/// that); the caller reads the region back for the frame size.
+/// Sets `binning`×`binning`, after checking that the camera bins at all and by that factor.
+/// Whether the camera shrinks its region with it is the camera's (the SFNC says its maximum
+/// shrinks; aravis's fake camera keeps its region): the caller reads the region back for the
+/// frame size.
 fn set_binning(camera: &aravis::Camera, id: &str, binning: u32) -> Result<(), GenicamError> {
     let refuse = |detail: String| GenicamError::NoBinning {
         id: id.to_string(),
