@@ -147,16 +147,23 @@ pub fn run(config: &BenchConfig) -> Result<BenchReport, BenchError> {
 
 /// Runs the decode thread's per-frame work on the CPU for `duration` (at least three windows).
 pub fn run_cpu(inputs: &BenchInputs, duration: Duration) -> Result<BenchReport, BenchError> {
-    run_with(inputs, duration, Box::new(CpuBackend))
+    run_with(
+        inputs,
+        duration,
+        Box::new(CpuBackend),
+        DecodeParams::default(),
+    )
 }
 
-/// Runs the decode thread's per-frame work with the decode on `backend` for `duration` (at
+/// Runs the decode thread's per-frame work with the decode on `backend` with `params` for
+/// `duration` (at
 /// least three windows). A backend that does not time its stages reports the whole decode as
 /// "solve (phasors)".
 pub fn run_with(
     inputs: &BenchInputs,
     duration: Duration,
     backend: Box<dyn DecodeBackend>,
+    params: DecodeParams,
 ) -> Result<BenchReport, BenchError> {
     let seconds = duration.as_secs_f64();
     if !(seconds.is_finite() && seconds > 0.0) {
@@ -168,17 +175,14 @@ pub fn run_with(
         triangulator,
     } = inputs;
     let (width, height) = (rig.width(), rig.height());
-    let mut decoder = SlidingDecoder::new(
-        rig.sequence.clone(),
-        rig.config.cross_talk,
-        DecodeParams::default(),
-    )?
-    .with_backend(backend);
+    let mut decoder = SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params)?
+        .with_backend(backend);
     let mut cloud = PointCloud::default();
     let mut display_coordinate: Vec<f32> = Vec::new();
     let names = [
         "frame into window",
         "solve (phasors)",
+        "motion model",
         "smooth (unit phasor)",
         "unwrap + checks",
         "decode (total)",
@@ -230,6 +234,7 @@ pub fn run_with(
         let row = [
             decode_ms - timings.total_ms(),
             timings.solve_ms,
+            timings.motion_ms,
             timings.smooth_ms,
             timings.unwrap_ms,
             decode_ms,

@@ -6,7 +6,9 @@ mod common;
 
 use std::f32::consts::TAU;
 use tremorscan::decode::reference::decode_window_reference;
-use tremorscan::decode::{decode_window, DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
+use tremorscan::decode::{
+    decode_window, DecodeOutput, DecodeParams, MotionParams, UnwrapMethod, WindowSolver,
+};
 use tremorscan::frame::Frame;
 use tremorscan::pattern::{cps_gray, Axis, CpsGrayVariant, PatternSequence};
 use tremorscan::rig::{RigConfig, VirtualRig};
@@ -16,8 +18,13 @@ fn frames(rig: &VirtualRig, first: u64) -> Vec<Frame> {
     common::rendered(rig, first..first + len)
 }
 
-/// Decodes `frames` both ways and compares every output plane.
+/// Decodes `frames` both ways and compares every output plane. The reference is the still
+/// model, so both decode without the motion model.
 fn compare(rig: &VirtualRig, frames: &[Frame], params: DecodeParams) {
+    let params = DecodeParams {
+        motion: MotionParams::off(),
+        ..params
+    };
     let order: Vec<usize> = frames.iter().map(|f| f.pattern_index).collect();
     let solver = WindowSolver::new(&rig.sequence, &order, &rig.config.cross_talk).unwrap();
     let n = rig.sequence.chebyshev_n();

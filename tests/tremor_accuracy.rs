@@ -203,11 +203,7 @@ fn ten_percent_dropped_frames_are_stated_and_survived() {
 
 #[test]
 fn a_still_hand_gives_no_tremor_peak() {
-    let config = config(Some(Tremor {
-        frequency_hz: 5.3,
-        tip_amplitude_mm: 0.0,
-        hand_amplitude_mm: 0.0,
-    }));
+    let config = config(Some(Tremor::flexion(5.3, 0.0, 0.0)));
     let frames = render_all(&config);
     let samples = track(&config, &frames, |_| true);
     let r = report(&samples);

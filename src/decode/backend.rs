@@ -12,7 +12,9 @@
 //! planes (`phase_rad`, `coarse_px`); other backends may leave them as they were.
 
 use super::WindowSolver;
-use super::{finish_window, phasor, DecodeError, DecodeOutput, DecodeParams, UnwrapMethod};
+use super::{
+    finish_window, motion_basis, phasor, DecodeError, DecodeOutput, DecodeParams, UnwrapMethod,
+};
 use crate::frame::Frame;
 use std::time::Instant;
 
@@ -73,11 +75,20 @@ impl DecodeBackend for CpuBackend {
     fn decode(&mut self, window: &Window<'_>, out: &mut DecodeOutput) -> Result<(), DecodeError> {
         let started = Instant::now();
         let chebyshev = window.params.unwrap != UnwrapMethod::Temporal;
-        phasor::solve_phasors(window.solver, window.frames, window.params, chebyshev, out);
+        let basis = motion_basis(window.solver, window.frames, window.params);
+        phasor::solve_phasors(
+            window.solver,
+            window.frames,
+            window.params,
+            chebyshev,
+            basis.as_ref(),
+            out,
+        );
         finish_window(
             window.solver,
             window.params,
             window.chebyshev_n,
+            basis.as_ref(),
             started,
             out,
         );

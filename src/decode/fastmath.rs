@@ -8,6 +8,10 @@
 //! compiles to a scalar conversion per lane on x86 (about seven instructions each) and which
 //! therefore kept whole loops from vectorising.
 //!
+//! [`sin_cos_small`] is the Taylor series of sine and cosine to degree 11 and 12 (truncation
+//! below 6·10⁻⁸ for |x| ≤ π/2); [`sin_cos_phase`] extends it to a phase in `[0, 2π)` through the
+//! half angle of `x − π` (two products, no branch).
+//!
 //! [`max_or_second`] and [`min_or_second`] are `max`/`min` as one x86 instruction. Rust's
 //! `f32::max` ignores a NaN operand (IEEE maxNum), which x86 vector code implements with a compare
 //! and a blend around each `maxps`; where a NaN operand cannot occur, or where taking the second
@@ -91,6 +95,31 @@ pub fn colour_byte(v: f32) -> u8 {
     whole_to_byte(v.max(0.0).min(255.0).floor())
 }
 
+/// `(sin x, cos x)` for `|x| ≤ π/2`, within about 1e-7.
+#[inline(always)]
+pub fn sin_cos_small(x: f32) -> (f32, f32) {
+    let x2 = x * x;
+    let s = x
+        * (1.0
+            + x2 * (-1.0 / 6.0
+                + x2 * (1.0 / 120.0
+                    + x2 * (-1.0 / 5040.0 + x2 * (1.0 / 362_880.0 - x2 / 39_916_800.0)))));
+    let c = 1.0
+        + x2 * (-0.5
+            + x2 * (1.0 / 24.0
+                + x2 * (-1.0 / 720.0
+                    + x2 * (1.0 / 40_320.0 + x2 * (-1.0 / 3_628_800.0 + x2 / 479_001_600.0)))));
+    (s, c)
+}
+
+/// `(sin x, cos x)` for a phase `x ∈ [0, 2π)`, within about 3e-7: with `y = (x − π)/2`,
+/// `sin x = −2·sin y·cos y` and `cos x = 2·sin²y − 1`.
+#[inline(always)]
+pub fn sin_cos_phase(x: f32) -> (f32, f32) {
+    let (s, c) = sin_cos_small(0.5 * (x - PI));
+    (-2.0 * s * c, 2.0 * s * s - 1.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -147,5 +176,24 @@ mod tests {
         for v in values {
             assert_eq!(colour_byte(v), v.clamp(0.0, 255.0) as u8, "{v}");
         }
+    }
+
+    #[test]
+    fn sine_and_cosine_match_libm() {
+        let mut worst = 0f64;
+        for i in 0..=20_000 {
+            let x = (i as f64 / 20_000.0) * std::f64::consts::TAU * 0.999_999;
+            let (s, c) = sin_cos_phase(x as f32);
+            worst = worst
+                .max((f64::from(s) - x.sin()).abs())
+                .max((f64::from(c) - x.cos()).abs());
+            let small = (i as f64 / 10_000.0 - 1.0) * std::f64::consts::FRAC_PI_2;
+            let (s, c) = sin_cos_small(small as f32);
+            worst = worst
+                .max((f64::from(s) - small.sin()).abs())
+                .max((f64::from(c) - small.cos()).abs());
+        }
+        // f32 rounding of the argument (6e-8 · x) and of the products, and the truncation.
+        assert!(worst < 1e-6, "worst {worst}");
     }
 }

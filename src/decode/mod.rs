@@ -5,6 +5,9 @@
 //! 1. [`phasor`]: per pixel, solve the window's linear system (paper eqs. 4 / 22) with the
 //!    precomputed pseudo-inverse of [`solver::WindowSolver`]; write wrapped phases, amplitudes, the
 //!    offset colour and, for CPS, the Chebyshev unit phasor.
+//!    With the motion model ([`MotionModel::Linear`], CPS-RGB windows), stage 1 writes the
+//!    evidence of each pixel's velocity instead, [`smooth`] sums it over the pixel's patch and
+//!    [`motion`] corrects every frequency's phasor for the motion inside the window.
 //! 2. [`smooth`]: for the robust CPS unwrap only, average the unit phasor over an edge-aware
 //!    neighbourhood (a recursive domain filter that stops at depth and colour edges).
 //! 3. [`unwrap`]: unwrap each wrapped phase with the coarse coordinate (eq. 8), combine the maps
@@ -22,6 +25,7 @@ pub mod backend;
 mod connect;
 mod consistency;
 pub mod fastmath;
+pub mod motion;
 pub mod phasor;
 pub mod reference;
 pub mod smooth;
@@ -30,6 +34,7 @@ pub mod unwrap;
 pub mod window;
 
 pub use backend::{CpuBackend, DecodeBackend};
+pub use motion::MotionBasis;
 pub use solver::WindowSolver;
 pub use window::{SlidingDecoder, WindowOutcome};
 
@@ -58,6 +63,9 @@ pub mod invalid {
     pub const OUT_OF_RANGE: u8 = 32;
     /// A connected neighbour's coordinate differs by more than half a fringe period.
     pub const ORDER_JUMP: u8 = 64;
+    /// The motion inside the window is more than the motion model explains (a frame's phase
+    /// turns by more than [`super::motion::MAX_TURN_RAD`], or the model is near singular).
+    pub const MOTION: u8 = 128;
 }
 
 /// Errors of the decode module.
@@ -118,6 +126,47 @@ pub enum UnwrapMethod {
     Temporal,
 }
 
+/// How motion of the surface inside the window is modelled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MotionModel {
+    /// The paper's window: the scene is still for its duration.
+    Off,
+    /// The coordinate moves linearly in time within the window, one velocity per pixel shared by
+    /// the frequencies ([`motion`]). CPS-RGB windows only; other sequences decode as still.
+    Linear,
+}
+
+/// The motion model and how its velocity is estimated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionParams {
+    pub model: MotionModel,
+    /// Decay of the edge-aware sums of the velocity evidence (as [`SmoothingParams::decay`]):
+    /// smaller follows a velocity that changes across the surface more closely, with more noise.
+    pub decay: f32,
+    /// Gauss–Newton steps of the velocity (each one edge-aware sum and one correction).
+    pub iterations: u32,
+}
+
+impl MotionParams {
+    /// The paper's still window.
+    pub fn off() -> Self {
+        Self {
+            model: MotionModel::Off,
+            ..Self::default()
+        }
+    }
+}
+
+impl Default for MotionParams {
+    fn default() -> Self {
+        Self {
+            model: MotionModel::Linear,
+            decay: 0.7,
+            iterations: 2,
+        }
+    }
+}
+
 /// Parameters of the edge-aware averaging of the unit phasor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SmoothingParams {
@@ -165,6 +214,8 @@ pub struct DecodeParams {
     /// Mark connected neighbours whose fringe orders disagree ([`invalid::ORDER_JUMP`]).
     pub check_order_jumps: bool,
     pub smoothing: SmoothingParams,
+    /// Motion inside the window.
+    pub motion: MotionParams,
 }
 
 impl Default for DecodeParams {
@@ -178,6 +229,7 @@ impl Default for DecodeParams {
             max_disagreement_chi2: 25.0,
             check_order_jumps: true,
             smoothing: SmoothingParams::default(),
+            motion: MotionParams::default(),
         }
     }
 }
@@ -186,6 +238,8 @@ impl Default for DecodeParams {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StageTimings {
     pub solve_ms: f64,
+    /// The motion model's velocity estimate and correction (0 without it).
+    pub motion_ms: f64,
     pub smooth_ms: f64,
     pub unwrap_ms: f64,
     /// Time the device itself spent on the window's compute, as it measured it (GPU timestamp
@@ -195,7 +249,7 @@ pub struct StageTimings {
 
 impl StageTimings {
     pub fn total_ms(&self) -> f64 {
-        self.solve_ms + self.smooth_ms + self.unwrap_ms
+        self.solve_ms + self.motion_ms + self.smooth_ms + self.unwrap_ms
     }
 }
 
@@ -223,6 +277,11 @@ pub struct DecodeOutput {
     pub coordinate_px: Vec<f32>,
     /// Invalid-reason bits of [`invalid`]; 0 where valid.
     pub invalid: Vec<u8>,
+    /// The motion model's coordinate velocity, projector px/s (0 where the pixel is invalid;
+    /// untouched by windows decoded without the model).
+    pub velocity_px_per_s: Vec<f32>,
+    /// The motion model's brightness change, relative per second (`κ`; as the velocity).
+    pub brightness_rate_per_s: Vec<f32>,
     /// How long each stage took for this window.
     pub timings: StageTimings,
     pub(crate) unit_re: Vec<f32>,
@@ -231,6 +290,8 @@ pub struct DecodeOutput {
     pub(crate) connect: Vec<u8>,
     pub(crate) jump: Vec<u8>,
     pub(crate) smooth_tmp: Vec<f32>,
+    /// Three planes of the motion model's evidence (`ue`, `ke`, count).
+    pub(crate) motion_evidence: Vec<f32>,
     pub(crate) vertical_state: Vec<f32>,
     pub(crate) band_scratch: Vec<f32>,
     pub(crate) band_scratch_len: usize,
@@ -254,6 +315,9 @@ impl DecodeOutput {
             coarse_px: vec![f32::NAN; n],
             coordinate_px: vec![f32::NAN; n],
             invalid: vec![0; n],
+            velocity_px_per_s: vec![0.0; n],
+            brightness_rate_per_s: vec![0.0; n],
+            motion_evidence: vec![0.0; 3 * n],
             timings: StageTimings::default(),
             unit_re: vec![0.0; n],
             unit_im: vec![0.0; n],
@@ -303,6 +367,9 @@ impl DecodeOutput {
             + self.colour.capacity()
             + self.coarse_px.capacity()
             + self.coordinate_px.capacity()
+            + self.velocity_px_per_s.capacity()
+            + self.brightness_rate_per_s.capacity()
+            + self.motion_evidence.capacity()
             + self.unit_re.capacity()
             + self.unit_im.capacity()
             + self.support.capacity()
@@ -338,9 +405,28 @@ pub fn decode_window<F: Borrow<Frame> + Sync>(
     check_window(solver, frames, params, chebyshev_n, out)?;
     let chebyshev = params.unwrap != UnwrapMethod::Temporal;
     let started = Instant::now();
-    phasor::solve_phasors(solver, frames, params, chebyshev, out);
-    finish_window(solver, params, chebyshev_n, started, out);
+    let basis = motion_basis(solver, frames, params);
+    phasor::solve_phasors(solver, frames, params, chebyshev, basis.as_ref(), out);
+    finish_window(solver, params, chebyshev_n, basis.as_ref(), started, out);
     Ok(())
+}
+
+/// The window's motion model, when `params` ask for one and the window can take it (a CPS-RGB
+/// window unwrapped by the Chebyshev relation).
+pub fn motion_basis<F: Borrow<Frame>>(
+    solver: &WindowSolver,
+    frames: &[F],
+    params: &DecodeParams,
+) -> Option<motion::MotionBasis> {
+    if params.motion.model != MotionModel::Linear
+        || params.motion.iterations == 0
+        || params.unwrap == UnwrapMethod::Temporal
+        || frames.len() != 3
+    {
+        return None;
+    }
+    let times = [0, 1, 2].map(|k| frames[k].borrow().time_s);
+    motion::MotionBasis::new(solver, times)
 }
 
 /// Checks the window against `solver` and `params`, sizes `out` and stamps its time.
@@ -408,10 +494,24 @@ pub(crate) fn finish_window(
     solver: &WindowSolver,
     params: &DecodeParams,
     chebyshev_n: Option<u32>,
+    motion_basis: Option<&motion::MotionBasis>,
     started: Instant,
     out: &mut DecodeOutput,
 ) {
     let solved = Instant::now();
+    if let Some(basis) = motion_basis {
+        smooth::compute_connectivity(out, &params.smoothing);
+        let iterations = params.motion.iterations;
+        for i in 0..iterations {
+            let kind = if i == 0 {
+                motion::StepKind::FromRest
+            } else {
+                motion::StepKind::Refine
+            };
+            motion::motion_step(solver, params, basis, kind, i + 1 == iterations, out);
+        }
+    }
+    let corrected = Instant::now();
     if params.unwrap == UnwrapMethod::ChebyshevRobust {
         smooth::smooth_unit_phasor(out, &params.smoothing);
     }
@@ -424,7 +524,8 @@ pub(crate) fn finish_window(
     let done = Instant::now();
     out.timings = StageTimings {
         solve_ms: (solved - started).as_secs_f64() * 1e3,
-        smooth_ms: (smoothed - solved).as_secs_f64() * 1e3,
+        motion_ms: (corrected - solved).as_secs_f64() * 1e3,
+        smooth_ms: (smoothed - corrected).as_secs_f64() * 1e3,
         unwrap_ms: (done - smoothed).as_secs_f64() * 1e3,
         device_ms: None,
     };

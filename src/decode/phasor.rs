@@ -20,6 +20,7 @@
 //!   averaged unit phasor of their neighbours.
 
 use super::fastmath::{phase_0_tau, whole_to_byte};
+use super::motion::{self, MotionBasis};
 use super::solver::FactoredSolve;
 use super::{invalid, DecodeOutput, DecodeParams, WindowSolver, BAND_ROWS};
 use crate::frame::Frame;
@@ -32,6 +33,7 @@ pub(crate) fn solve_phasors<F: Borrow<Frame> + Sync>(
     frames: &[F],
     params: &DecodeParams,
     chebyshev: bool,
+    motion_basis: Option<&MotionBasis>,
     out: &mut DecodeOutput,
 ) {
     let w = out.width;
@@ -39,6 +41,9 @@ pub(crate) fn solve_phasors<F: Borrow<Frame> + Sync>(
     let nc = out.channels;
     let scratch_len = out.band_scratch_len;
     let band_px = BAND_ROWS * w;
+    let n = w * out.height;
+    let (ev0, rest) = out.motion_evidence.split_at_mut(n);
+    let (ev1, ev2) = rest.split_at_mut(n);
     out.phase_rad
         .par_chunks_mut(band_px * nf)
         .zip(out.amplitude.par_chunks_mut(band_px * nf))
@@ -48,9 +53,18 @@ pub(crate) fn solve_phasors<F: Borrow<Frame> + Sync>(
         .zip(out.support.par_chunks_mut(band_px))
         .zip(out.invalid.par_chunks_mut(band_px))
         .zip(out.band_scratch.par_chunks_mut(scratch_len))
+        .zip(ev0.par_chunks_mut(band_px))
+        .zip(ev1.par_chunks_mut(band_px))
+        .zip(ev2[..n].par_chunks_mut(band_px))
         .enumerate()
         .for_each(
-            |(band, (((((((phase, amp), colour), re), im), support), flags), scratch))| {
+            |(
+                band,
+                (
+                    (((((((((phase, amp), colour), re), im), support), flags), scratch), ev0), ev1),
+                    ev2,
+                ),
+            )| {
                 let rows = flags.len() / w;
                 for r in 0..rows {
                     let y = band * BAND_ROWS + r;
@@ -68,10 +82,24 @@ pub(crate) fn solve_phasors<F: Borrow<Frame> + Sync>(
                             re: &mut re[px.clone()],
                             im: &mut im[px.clone()],
                             support: &mut support[px.clone()],
+                            motion: [
+                                &mut ev0[px.clone()],
+                                &mut ev1[px.clone()],
+                                &mut ev2[px.clone()],
+                            ],
                             flags: &mut flags[px],
                         };
                         let start = y * w + x0;
-                        solve_row(solver, frames, params, chebyshev, start, cw, scratch, view);
+                        solve_row(
+                            solver,
+                            frames,
+                            params,
+                            (chebyshev, motion_basis),
+                            start,
+                            cw,
+                            scratch,
+                            view,
+                        );
                     }
                 }
             },
@@ -96,6 +124,8 @@ struct RowOut<'a> {
     re: &'a mut [f32],
     im: &'a mut [f32],
     support: &'a mut [f32],
+    /// The motion model's evidence planes `ue`, `ke` and count (see [`motion::evidence`]).
+    motion: [&'a mut [f32]; 3],
     flags: &'a mut [u8],
 }
 
@@ -112,7 +142,7 @@ fn solve_row<F: Borrow<Frame>>(
     solver: &WindowSolver,
     frames: &[F],
     params: &DecodeParams,
-    chebyshev: bool,
+    (chebyshev, motion_basis): (bool, Option<&MotionBasis>),
     start: usize,
     w: usize,
     scratch: &mut [f32],
@@ -202,7 +232,7 @@ fn solve_row<F: Borrow<Frame>>(
         }
     }
     if chebyshev && nf == 3 {
-        derive_chebyshev3(solver, params, w, u, saturated, row);
+        derive_chebyshev3(solver, params, motion_basis, w, u, saturated, row);
         return;
     }
     for f in 0..nf {
@@ -256,6 +286,7 @@ fn solve_row<F: Borrow<Frame>>(
 fn derive_chebyshev3(
     solver: &WindowSolver,
     params: &DecodeParams,
+    motion_basis: Option<&MotionBasis>,
     w: usize,
     u: &[f32],
     saturated: &[f32],
@@ -279,48 +310,55 @@ fn derive_chebyshev3(
     let [am0, am1, am2] = three_planes(row.amp, stride, w);
     let (re, im) = (&mut row.re[..w], &mut row.im[..w]);
     let (support, flags) = (&mut row.support[..w], &mut row.flags[..w]);
+    let [co0, co1, co2] = three_planes(row.colour, stride, w);
+    let [mue, mke, mcount] = row.motion;
+    let (mue, mke, mcount) = (&mut mue[..w], &mut mke[..w], &mut mcount[..w]);
     let saturated = &saturated[..w];
     let noise2 = params.camera_noise_gray * params.camera_noise_gray;
-    let g = &solver.noise_gain;
-    let (g0, g1, g2) = (g[0] * g[0], 4.0 * g[1] * g[1], g[2] * g[2]);
+    let gain2 = motion::gain2(solver);
     let limit = params.max_disagreement_chi2 * noise2;
     let min_amplitude = params.min_amplitude;
     let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
     for x in 0..w {
-        let (c0, s0) = (cu0[x], sv0[x]);
-        let (c1, s1) = (cu1[x], sv1[x]);
-        let (c2, s2) = (cu2[x], sv2[x]);
-        ph0[x] = phase_0_tau(s0, c0);
-        ph1[x] = phase_0_tau(s1, c1);
-        ph2[x] = phase_0_tau(s2, c2);
-        let (a0, a1, a2) = (c0 * c0 + s0 * s0, c1 * c1 + s1 * s1, c2 * c2 + s2 * s2);
-        let (m0, m1, m2) = (a0.sqrt(), a1.sqrt(), a2.sqrt());
-        am0[x] = m0;
-        am1[x] = m1;
-        am2[x] = m2;
-        // p = z0·conj(z1) and q = z1·conj(z2) both estimate a0·a1·e^{i f1 x} (eq. 13 and its
-        // sine form); the unit phasor is their sum.
-        let (pr, pi) = (c0 * c1 + s0 * s1, s0 * c1 - c0 * s1);
-        let (qr, qi) = (c1 * c2 + s1 * s2, s1 * c2 - c1 * s2);
-        // Their angle difference φ0 − 2φ1 + φ2 must vanish up to noise of variance
-        // σ²·(g0²/a0² + 4g1²/a1² + g2²/a2²): the two Chebyshev equations agree. Motion inside
-        // the window and mixed pixels break it. Tested on sin² of the angle, no atan2.
-        let (tr, ti) = (pr * qr + pi * qi, pi * qr - pr * qi);
-        let sin2 = ti * ti / (tr * tr + ti * ti);
-        let var_over_noise = g0 / a0 + g1 / a1 + g2 / a2;
-        let inconsistent = (tr < 0.0) | (sin2 > limit * var_over_noise);
+        let z = [(cu0[x], sv0[x]), (cu1[x], sv1[x]), (cu2[x], sv2[x])];
+        let c = motion::chebyshev3(z, gain2);
+        ph0[x] = c.phase[0];
+        ph1[x] = c.phase[1];
+        ph2[x] = c.phase[2];
+        am0[x] = c.amplitude[0];
+        am1[x] = c.amplitude[1];
+        am2[x] = c.amplitude[2];
         // A NaN amplitude counts as low.
-        let min_amp = m0.min(m1).min(m2);
+        let min_amp = c.amplitude[0].min(c.amplitude[1]).min(c.amplitude[2]);
         let low = min_amp.is_nan() | (min_amp < min_amplitude);
-        // The reasons as an f32 sum of distinct powers of two, so the loop stays in f32 lanes.
-        let reason = bit(low, invalid::LOW_AMPLITUDE)
-            + bit(saturated[x] > 0.0, invalid::SATURATED)
-            + bit(inconsistent, invalid::DISAGREEMENT);
-        let keep = if reason == 0.0 { 1.0 } else { 0.0 };
-        support[x] = keep;
-        re[x] = (pr + qr) * keep;
-        im[x] = (pi + qi) * keep;
-        flags[x] = whole_to_byte(reason);
+        let signal = bit(low, invalid::LOW_AMPLITUDE) + bit(saturated[x] > 0.0, invalid::SATURATED);
+        match motion_basis {
+            // The still model: the Chebyshev residual φ0 − 2φ1 + φ2 must vanish up to noise
+            // (motion inside the window and mixed pixels break it).
+            None => {
+                let reason = signal + bit(motion::inconsistent(&c, limit), invalid::DISAGREEMENT);
+                let keep = if reason == 0.0 { 1.0 } else { 0.0 };
+                support[x] = keep;
+                re[x] = c.unit.0 * keep;
+                im[x] = c.unit.1 * keep;
+                flags[x] = whole_to_byte(reason);
+            }
+            // The motion model: the residual is the velocity's evidence, weighted by its
+            // inverse variance, for stage 2 to sum over the patch; it is tested after the
+            // correction.
+            Some(basis) => {
+                let keep = if signal == 0.0 { 1.0 } else { 0.0 };
+                let offsets = [co0[x], co1[x], co2[x]];
+                let ev = motion::evidence(basis, z, &c, offsets, keep);
+                re[x] = ev.uu;
+                im[x] = ev.uk;
+                support[x] = ev.kk;
+                mue[x] = ev.ue;
+                mke[x] = ev.ke;
+                mcount[x] = keep;
+                flags[x] = whole_to_byte(signal);
+            }
+        }
     }
 }
 

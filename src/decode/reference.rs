@@ -6,7 +6,9 @@
 //! observations than unknowns), and derive phases with libm's `atan2`, amplitudes with `hypot`,
 //! the unit phasor and the flags in f64. Stages 2–4 are the shared ones. No precomputed
 //! pseudo-inverse, no SIMD, no threads: the baseline of the comparison in `docs/benchmarks.md`,
-//! and the ground for the test that the fast path computes the same thing.
+//! and the ground for the test that the fast path computes the same thing. It decodes with the
+//! still model whatever `params.motion` says: compare it with the fast path at
+//! [`super::MotionModel::Off`].
 
 use super::{check_window, finish_window, invalid, DecodeError, DecodeOutput, DecodeParams};
 use super::{UnwrapMethod, WindowSolver};
@@ -106,6 +108,6 @@ pub fn decode_window_reference<F: Borrow<Frame>>(
             out.unit_im[p] = (im * keep) as f32;
         }
     }
-    finish_window(solver, params, chebyshev_n, started, out);
+    finish_window(solver, params, chebyshev_n, None, started, out);
     Ok(())
 }

@@ -14,7 +14,8 @@
 //! pixel whatever its reach. The phasor magnitude (∝ amplitude²) weights bright pixels more.
 //! The weight of valid pixels is filtered alongside as `support`.
 
-use super::connect::{compute_connectivity, DOWN, RIGHT};
+pub(crate) use super::connect::compute_connectivity;
+use super::connect::{DOWN, RIGHT};
 use super::{DecodeOutput, SmoothingParams, BAND_ROWS};
 use rayon::prelude::*;
 use std::f32::consts::{PI, TAU};
@@ -22,8 +23,44 @@ use std::f32::consts::{PI, TAU};
 /// Runs stage 2 in place on `out.unit_re`, `out.unit_im` and `out.support`.
 pub(crate) fn smooth_unit_phasor(out: &mut DecodeOutput, params: &SmoothingParams) {
     compute_connectivity(out, params);
-    horizontal_pass(out, params.decay);
-    vertical_pass(out, params.decay);
+    let mut planes = Planes::of_unit_phasor(out);
+    smooth_planes(&mut planes, params.decay);
+}
+
+/// Three planes to smooth in place, with the scratch and the connectivity the passes use.
+pub(crate) struct Planes<'a> {
+    pub planes: [&'a mut [f32]; 3],
+    pub w: usize,
+    pub h: usize,
+    pub connect: &'a [u8],
+    /// Three planes of scratch: the horizontal pass's output.
+    pub tmp: &'a mut [f32],
+    pub band_scratch: &'a mut [f32],
+    pub band_scratch_len: usize,
+    pub vertical_state: &'a mut [f32],
+}
+
+impl<'a> Planes<'a> {
+    /// The unit phasor and the support.
+    pub(crate) fn of_unit_phasor(out: &'a mut DecodeOutput) -> Self {
+        Self {
+            planes: [&mut out.unit_re, &mut out.unit_im, &mut out.support],
+            w: out.width,
+            h: out.height,
+            connect: &out.connect,
+            tmp: &mut out.smooth_tmp,
+            band_scratch: &mut out.band_scratch,
+            band_scratch_len: out.band_scratch_len,
+            vertical_state: &mut out.vertical_state,
+        }
+    }
+}
+
+/// The recursion alone, over the connectivity already computed, with `decay`: the motion
+/// model's passes (see [`super::motion`]) sum their evidence in the same way.
+pub(crate) fn smooth_planes(planes: &mut Planes<'_>, decay: f32) {
+    horizontal_pass(planes, decay);
+    vertical_pass(planes, decay);
 }
 
 /// Horizontal recursion of one row: `F[x] = v[x] + g[x−1]·F[x−1]`, `B[x] = v[x] + g[x]·B[x+1]`,
@@ -80,22 +117,23 @@ fn horizontal_row(
     }
 }
 
-/// Rows of the unit phasor and support → `smooth_tmp` (three planes), the vertical pass's input.
-fn horizontal_pass(out: &mut DecodeOutput, decay: f32) {
-    let w = out.width;
-    let n = w * out.height;
+/// Rows of the three planes → `tmp` (three planes), the vertical pass's input.
+fn horizontal_pass(p: &mut Planes<'_>, decay: f32) {
+    let w = p.w;
+    let n = w * p.h;
     let band_px = BAND_ROWS * w;
-    let (t0, rest) = out.smooth_tmp.split_at_mut(n);
+    let (t0, rest) = p.tmp.split_at_mut(n);
     let (t1, t2) = rest.split_at_mut(n);
-    out.unit_re
+    let [a, b, c] = &p.planes;
+    a[..n]
         .par_chunks(band_px)
-        .zip(out.unit_im.par_chunks(band_px))
-        .zip(out.support.par_chunks(band_px))
-        .zip(out.connect.par_chunks(band_px))
+        .zip(b[..n].par_chunks(band_px))
+        .zip(c[..n].par_chunks(band_px))
+        .zip(p.connect[..n].par_chunks(band_px))
         .zip(t0.par_chunks_mut(band_px))
         .zip(t1.par_chunks_mut(band_px))
         .zip(t2[..n].par_chunks_mut(band_px))
-        .zip(out.band_scratch.par_chunks_mut(out.band_scratch_len))
+        .zip(p.band_scratch.par_chunks_mut(p.band_scratch_len))
         .for_each(|(((((((re, im), support), link), d0), d1), d2), gain)| {
             for r in 0..link.len() / w {
                 let span = r * w..(r + 1) * w;
@@ -122,19 +160,20 @@ const VERTICAL_HALO_ROWS: usize = 48;
 
 /// Vertical recursion, in parallel blocks of rows. Each block warms its state up on the halo rows
 /// above (forward) and below (backward), reading the unmodified input copy.
-fn vertical_pass(out: &mut DecodeOutput, decay: f32) {
-    let w = out.width;
-    let h = out.height;
+fn vertical_pass(p: &mut Planes<'_>, decay: f32) {
+    let w = p.w;
+    let h = p.h;
     let n = w * h;
     // The horizontal pass's output, read while the blocks write their rows of the final planes.
-    let orig: &[f32] = &out.smooth_tmp[..3 * n];
-    let connect = &out.connect;
+    let orig: &[f32] = &p.tmp[..3 * n];
+    let connect = p.connect;
     let block_px = VERTICAL_BLOCK_ROWS * w;
-    out.unit_re
+    let [a, b, c] = &mut p.planes;
+    a[..n]
         .par_chunks_mut(block_px)
-        .zip(out.unit_im.par_chunks_mut(block_px))
-        .zip(out.support.par_chunks_mut(block_px))
-        .zip(out.vertical_state.par_chunks_mut(3 * w))
+        .zip(b[..n].par_chunks_mut(block_px))
+        .zip(c[..n].par_chunks_mut(block_px))
+        .zip(p.vertical_state.par_chunks_mut(3 * w))
         .enumerate()
         .for_each(|(block, (((re, im), support), state))| {
             let first = block * VERTICAL_BLOCK_ROWS;
@@ -406,8 +445,7 @@ mod tests {
             .iter()
             .map(|v| reference(v, &out.connect, w, h, 0.7))
             .collect();
-        horizontal_pass(&mut out, 0.7);
-        vertical_pass(&mut out, 0.7);
+        smooth_planes(&mut Planes::of_unit_phasor(&mut out), 0.7);
         for (got, want) in [&out.unit_re, &out.unit_im, &out.support]
             .iter()
             .zip(&expected)

@@ -65,6 +65,12 @@ pub struct FactoredSolve {
     pub slot_of_channel: [usize; 3],
     /// The projector channel carrying each frequency slot (the inverse permutation).
     pub channel_of_slot: [usize; 3],
+    /// The cross-talk matrix `A` (camera channel × projector channel) and bias `b`, gray levels.
+    pub mix: [[f32; 3]; 3],
+    pub bias_gray: [f32; 3],
+    /// The pattern shift of each frame of the window (the same in every channel), radians:
+    /// frame k's sample of a channel is `o + cos θ_k·U − sin θ_k·V`.
+    pub shift_rad: [f32; 3],
 }
 
 impl FactoredSolve {
@@ -138,6 +144,9 @@ impl FactoredSolve {
             unmix: to_f32(&unmix),
             slot_of_channel,
             channel_of_slot,
+            shift_rad: shifts.map(|s| s as f32),
+            mix: to_f32(&cross_talk.a),
+            bias_gray: [0, 1, 2].map(|j| cross_talk.b_gray[j] as f32),
         })
     }
 }

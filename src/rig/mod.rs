@@ -12,6 +12,7 @@
 pub mod board;
 pub mod captures;
 pub mod evaluate;
+pub mod motion_eval;
 pub mod noise;
 pub mod primitives;
 pub mod render;

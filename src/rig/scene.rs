@@ -5,13 +5,20 @@
 //! `r` is the horizontal arm from the knuckle to the tracked tip point, so that point moves by
 //! `A_tip` along the optical axis relative to the hand; the whole hand also oscillates vertically
 //! (in phase with the index finger), which adds to every point's motion.
+//!
+//! Lateral motion, as a resting hand shows it: the whole hand sways sideways (camera y,
+//! across the fingers) by `S·sin(2π·f·t + π/2)` and rolls about the forearm axis (the line
+//! along x through the palm centre: pronation–supination) by `R·sin(2π·f·t + π/4)`. The hand's
+//! parts are built in a hand frame and placed by that rigid pose: rays are taken into the hand
+//! frame to hit its parts, and normals and the tracked points out of it, so the truth stays
+//! exact.
 //! [`Scene::at`] poses every primitive at one instant, so each camera frame is rendered at its own
 //! time and motion inside the decode window is real.
 
 use super::board::Chessboard;
 use super::primitives::{Capsule, Ellipsoid, HandPart, PixelBox, Shape};
 use crate::geometry::{LensModel, Pose};
-use nalgebra::{Rotation3, Unit, Vector3};
+use nalgebra::{Isometry3, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
 use std::f64::consts::TAU;
 
 type V3 = Vector3<f64>;
@@ -34,6 +41,23 @@ pub struct Tremor {
     pub tip_amplitude_mm: f64,
     /// Peak vertical displacement of the whole hand, mm.
     pub hand_amplitude_mm: f64,
+    /// Peak sideways displacement of the whole hand (camera y), mm.
+    pub sway_amplitude_mm: f64,
+    /// Peak roll of the hand about the forearm axis (pronation–supination), degrees.
+    pub roll_amplitude_deg: f64,
+}
+
+impl Tremor {
+    /// Flexion of the fingers and a small vertical motion of the hand, no lateral motion.
+    pub fn flexion(frequency_hz: f64, tip_amplitude_mm: f64, hand_amplitude_mm: f64) -> Self {
+        Self {
+            frequency_hz,
+            tip_amplitude_mm,
+            hand_amplitude_mm,
+            sway_amplitude_mm: 0.0,
+            roll_amplitude_deg: 0.0,
+        }
+    }
 }
 
 /// What the scene contains.
@@ -63,11 +87,7 @@ impl SceneConfig {
             table_tilt_rad: 0.05,
             table_texture: true,
             table_albedo: [0.72, 0.70, 0.66],
-            hand: Some(Tremor {
-                frequency_hz: 5.3,
-                tip_amplitude_mm: 2.0,
-                hand_amplitude_mm: 0.3,
-            }),
+            hand: Some(Tremor::flexion(5.3, 2.0, 0.3)),
             hand_height_mm: 45.0,
             board: None,
         }
@@ -132,6 +152,8 @@ pub struct PosedScene {
     table_albedo: [f64; 3],
     board: Option<Chessboard>,
     parts: Vec<HandPart>,
+    /// Rigid pose of the hand frame (in which `parts` are built) in the camera frame.
+    camera_from_hand: Isometry3<f64>,
     /// True positions of [`POINT_NAMES`] (empty without a hand), camera frame, mm.
     pub points: Vec<V3>,
 }
@@ -167,6 +189,7 @@ impl Scene {
             table_albedo: c.table_albedo,
             board: c.board,
             parts: Vec::with_capacity(11),
+            camera_from_hand: Isometry3::identity(),
             points: Vec::with_capacity(POINT_NAMES.len()),
         };
         let Some(tremor) = c.hand else {
@@ -209,6 +232,17 @@ impl Scene {
             .points
             .push(palm_centre + V3::new(0.0, 0.0, -palm.radii.z));
         posed.push(Shape::Ellipsoid(palm));
+        // Sway and roll: the hand frame about the forearm axis through the palm centre.
+        let roll = tremor.roll_amplitude_deg.to_radians() * (omega_t + TAU / 8.0).sin();
+        let sway = tremor.sway_amplitude_mm * (omega_t + TAU / 4.0).sin();
+        let about_axis = Isometry3::from_parts(
+            Translation3::from(palm_centre + V3::new(0.0, sway, 0.0)),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), roll),
+        ) * Translation3::from(-palm_centre);
+        posed.camera_from_hand = about_axis;
+        for p in &mut posed.points {
+            *p = about_axis.transform_point(&Point3::from(*p)).coords;
+        }
         posed
     }
 }
@@ -238,7 +272,11 @@ impl PosedScene {
         projector_from_camera: &Pose,
     ) {
         for part in &mut self.parts {
-            let (centre, radius) = part.shape.bounding_sphere();
+            let (centre_in_hand, radius) = part.shape.bounding_sphere();
+            let centre = self
+                .camera_from_hand
+                .transform_point(&Point3::from(centre_in_hand))
+                .coords;
             part.camera_box = PixelBox::around_sphere(camera, &Pose::identity(), centre, radius);
             part.projector_box =
                 PixelBox::around_sphere(projector, projector_from_camera, centre, radius);
@@ -271,16 +309,17 @@ impl PosedScene {
             }
         }
         let mut limit = best.map_or(f64::INFINITY, |h| h.distance_mm);
+        let (origin_in_hand, dir_in_hand) = self.ray_in_hand(origin, dir);
         for part in &self.parts {
             if !part.camera_box.contains(pixel) {
                 continue;
             }
-            if let Some((t, normal)) = part.shape.intersect(origin, dir) {
+            if let Some((t, normal)) = part.shape.intersect(&origin_in_hand, &dir_in_hand) {
                 if t < limit {
                     limit = t;
                     best = Some(Hit {
                         distance_mm: t,
-                        normal,
+                        normal: self.camera_from_hand.rotation * normal,
                         material: Material::Skin,
                     });
                 }
@@ -297,14 +336,25 @@ impl PosedScene {
             .as_ref()
             .and_then(|b| b.intersect(origin, dir))
             .is_some_and(|(t, _)| t < max_t);
+        let (origin_in_hand, dir_in_hand) = self.ray_in_hand(origin, dir);
         board_blocks
             || self.parts.iter().any(|part| {
                 part.projector_box.contains(projector_pixel)
                     && part
                         .shape
-                        .intersect(origin, dir)
+                        .intersect(&origin_in_hand, &dir_in_hand)
                         .is_some_and(|(t, _)| t < max_t)
             })
+    }
+
+    /// A camera-frame ray in the hand frame (a rigid map: distances along it are unchanged).
+    #[inline]
+    fn ray_in_hand(&self, origin: &V3, dir: &V3) -> (V3, V3) {
+        let inverse = self.camera_from_hand.inverse();
+        (
+            inverse.transform_point(&Point3::from(*origin)).coords,
+            inverse.transform_vector(dir),
+        )
     }
 
     /// The chessboard, if the scene has one.
@@ -376,11 +426,7 @@ mod tests {
     #[test]
     fn fingertips_tremble_at_the_set_amplitude() {
         let scene = Scene::new(SceneConfig {
-            hand: Some(Tremor {
-                frequency_hz: 5.0,
-                tip_amplitude_mm: 2.0,
-                hand_amplitude_mm: 0.0,
-            }),
+            hand: Some(Tremor::flexion(5.0, 2.0, 0.0)),
             ..SceneConfig::trembling_hand()
         });
         let zs: Vec<f64> = (0..200)
@@ -391,6 +437,49 @@ mod tests {
         // Peak-to-peak of the tracked tip point is 2·A up to the sampling of the sine (1 ms of
         // 200 ms) and the second-order term of the rotation.
         assert!((span - 4.0).abs() < 0.05, "span {span}");
+    }
+
+    #[test]
+    fn sway_and_roll_move_the_hand_rigidly_and_its_surface_with_it() {
+        let still = Scene::new(SceneConfig {
+            hand: Some(Tremor::flexion(5.0, 0.0, 0.0)),
+            ..SceneConfig::trembling_hand()
+        });
+        let swaying = Scene::new(SceneConfig {
+            hand: Some(Tremor {
+                sway_amplitude_mm: 4.0,
+                roll_amplitude_deg: 3.0,
+                ..Tremor::flexion(5.0, 0.0, 0.0)
+            }),
+            ..SceneConfig::trembling_hand()
+        });
+        // At t = 0 the sway is at its peak (phase π/2) and the roll at sin(π/4) of its peak.
+        let (a, b) = (still.at(0.0), swaying.at(0.0));
+        let roll = 3f64.to_radians() * (TAU / 8.0).sin();
+        let centre = V3::new(45.0, 0.0, 455.0);
+        for (p, q) in a.points.iter().zip(&b.points) {
+            let r = p - centre;
+            let expected = centre
+                + V3::new(
+                    r.x,
+                    r.y * roll.cos() - r.z * roll.sin() + 4.0,
+                    r.y * roll.sin() + r.z * roll.cos(),
+                );
+            assert!((q - expected).norm() < 1e-9, "{q:?} vs {expected:?}");
+        }
+        // The moved surface is where the moved points are: the ray to each tracked point hits
+        // skin at its distance.
+        for q in &b.points[..5] {
+            let dir = q.normalize();
+            let hit = b.intersect(&V3::zeros(), &dir, (0.0, 0.0)).unwrap();
+            assert_eq!(hit.material, Material::Skin);
+            assert!((hit.distance_mm - q.norm()).abs() < 1e-6, "{q:?}");
+        }
+        // A quarter period later the sway is zero and the roll at sin(3π/4) of its peak: the
+        // back of the hand, 12 mm above the axis, is only rolled.
+        let later = swaying.at(0.05).points[5];
+        let roll = 3f64.to_radians() * (TAU * 3.0 / 8.0).sin();
+        assert!((later.y - 12.0 * roll.sin()).abs() < 1e-9, "{later:?}");
     }
 
     #[test]

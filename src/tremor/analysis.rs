@@ -19,7 +19,10 @@
 //! 6. Occupancy: the share of 1 s windows (hop 0.5 s) whose band-passed RMS reaches the
 //!    significance level. Frequency stability: the standard deviation of 1/period over
 //!    consecutive upward zero crossings of the band-passed record.
-//! 7. Labels: the MDS-UPDRS amplitude bin of the peak-to-peak amplitude (0: no tremor peak,
+//! 7. No figure from too little data: a record of which less than half was measured, or in
+//!    which no 1 s window has half of its samples measured, gets
+//!    [`TremorError::TooFewValid`] saying so, never a peak-to-peak of 0 mm.
+//! 8. Labels: the MDS-UPDRS amplitude bin of the peak-to-peak amplitude (0: no tremor peak,
 //!    1: < 1 cm, 2: 1–3 cm, 3: 3–10 cm, 4: ≥ 10 cm) and the usual bands containing the peak:
 //!    parkinsonian rest 3–7 Hz, essential 4–12 Hz, physiological 8–12 Hz.
 
@@ -76,6 +79,9 @@ pub struct TremorReport {
     pub spectrum: Psd,
 }
 
+/// The least share of valid samples a record needs for figures.
+pub const MIN_VALID_FRACTION: f64 = 0.5;
+
 fn rms(x: &[f64]) -> f64 {
     (x.iter().map(|v| v * v).sum::<f64>() / x.len().max(1) as f64).sqrt()
 }
@@ -95,6 +101,15 @@ pub fn analyze(
     let series = resample(times_s, displacement_mm).ok_or(TremorError::TooFewSamples {
         valid: displacement_mm.iter().flatten().count(),
     })?;
+    if series.valid_fraction < MIN_VALID_FRACTION {
+        return Err(TremorError::TooFewValid {
+            why: format!(
+                "only {:.0} % of the samples are valid; at least {:.0} % are needed",
+                100.0 * series.valid_fraction,
+                100.0 * MIN_VALID_FRACTION
+            ),
+        });
+    }
     let fs = series.rate_hz;
     // Above Nyquist the band would fold back onto itself: refuse rather than report aliases.
     if fs < 2.0 * options.band_hz.1 {
@@ -143,7 +158,14 @@ pub fn analyze(
         })
         .collect();
     p2p.sort_by(f64::total_cmp);
-    let amplitude_peak_to_peak_mm = p2p.get(p2p.len() / 2).copied().unwrap_or(0.0);
+    let Some(&amplitude_peak_to_peak_mm) = p2p.get(p2p.len() / 2) else {
+        return Err(TremorError::TooFewValid {
+            why: format!(
+                "no 1 s window has at least half of its samples valid ({:.0} % valid overall)",
+                100.0 * series.valid_fraction
+            ),
+        });
+    };
     let peaks_hz = significant_peaks(&psd, &x, fs, options, amplitude_rms_mm);
     let peak_frequency_hz = peaks_hz.first().copied();
     let hop = (second / 2).max(1);
@@ -354,5 +376,24 @@ mod tests {
     fn too_little_data_is_an_error() {
         let e = analyze(&[0.0, 0.1], &[Some(1.0), None], &exact()).unwrap_err();
         assert!(e.to_string().contains("valid"), "{e}");
+    }
+
+    #[test]
+    fn a_mostly_missing_record_has_no_figures_rather_than_zero() {
+        // A 14 mm peak-to-peak tremor of which only every third sample is valid (31 %).
+        let (t, v) = series(|t| 7.0 * (std::f64::consts::TAU * 5.3 * t).sin(), 3.0);
+        let sparse: Vec<Option<f64>> = v
+            .iter()
+            .enumerate()
+            .map(|(i, v)| if i % 13 < 4 { *v } else { None })
+            .collect();
+        let e = analyze(&t, &sparse, &exact()).unwrap_err();
+        assert!(
+            matches!(&e, TremorError::TooFewValid { why } if why.contains("31 %")),
+            "{e}"
+        );
+        // Enough data gives the figure.
+        let r = analyze(&t, &v, &exact()).unwrap();
+        assert!((r.amplitude_peak_to_peak_mm - 14.0).abs() < 0.3, "{r:?}");
     }
 }

@@ -22,6 +22,10 @@ pub enum TremorError {
         "only {valid} valid samples; the analysis needs at least 4 (is the point on the hand?)"
     )]
     TooFewSamples { valid: usize },
+    /// Too little of the record was measured for honest figures: rather no figure than one
+    /// made from gaps.
+    #[error("figures missing: {why}")]
+    TooFewValid { why: String },
     #[error("the record is {duration_s:.2} s long, too short for a spectrum")]
     TooShort { duration_s: f64 },
     #[error(

@@ -12,7 +12,7 @@ use anyhow::{Context, Result};
 use std::io::Write;
 use std::time::Duration;
 use tremorscan::bench::{prepare, run_cpu, run_with, BenchInputs, BenchReport, DEVICE_STAGE};
-use tremorscan::decode::DecodeParams;
+use tremorscan::decode::{CpuBackend, DecodeParams, MotionParams};
 
 /// Binning factors measured, in this order, when the requested size does not keep up.
 const BINNINGS: [usize; 3] = [2, 3, 4];
@@ -55,6 +55,21 @@ pub fn run_bench(args: &BenchArgs) -> Result<()> {
     let inputs = prepare(args.width, args.height).context("could not prepare the test frames")?;
     let report = run_cpu(&inputs, duration).context("the CPU benchmark failed")?;
     write_cpu_report(&mut out, &report, args.fps)?;
+    // The same windows decoded as the paper's still window: what the motion model costs.
+    let still = DecodeParams {
+        motion: MotionParams::off(),
+        ..DecodeParams::default()
+    };
+    let still_report = run_with(&inputs, duration, Box::new(CpuBackend), still)
+        .context("the CPU benchmark of the still window failed")?;
+    writeln!(
+        out,
+        "CPU, still window (no motion model): decode {:.2} ms median per window, {:.1} frames/s \
+         sustainable; the motion model costs {:.2}× its decode",
+        still_report.decode_ms_median,
+        still_report.fps_sustainable,
+        report.decode_ms_median / still_report.decode_ms_median
+    )?;
     if report.fps_sustainable < args.fps {
         let binned_duration = duration.min(Duration::from_secs_f64(BINNED_SECONDS));
         find_binning(&mut out, args, binned_duration)?;
@@ -119,8 +134,13 @@ fn find_binning(out: &mut impl Write, args: &BenchArgs, duration: Duration) -> R
 /// the display hand-off stay on the CPU.
 fn run_gpu(inputs: &BenchInputs, duration: Duration) -> Result<BenchReport> {
     let ctx = GpuContext::new()?;
-    let backend = GpuBackend::new(ctx, &inputs.rig.sequence, &DecodeParams::default())?;
-    Ok(run_with(inputs, duration, Box::new(backend))?)
+    // The GPU decodes the still window (it has no motion model yet).
+    let still = DecodeParams {
+        motion: MotionParams::off(),
+        ..DecodeParams::default()
+    };
+    let backend = GpuBackend::new(ctx, &inputs.rig.sequence, &still)?;
+    Ok(run_with(inputs, duration, Box::new(backend), still)?)
 }
 
 /// The CPU path's table, verdict against `camera_fps` and memory.

@@ -16,4 +16,5 @@ pub mod session_cmd;
 pub mod simulate_calibration;
 pub mod snapshot;
 pub mod sweep;
+pub mod sweep_motion;
 pub mod tremor_cmd;

@@ -26,7 +26,8 @@ pub struct PointFigure {
     pub label: String,
     pub times_s: Vec<f64>,
     pub displacement_mm: Vec<Option<f64>>,
-    pub report: TremorReport,
+    /// The figures, or why they are missing (too few valid samples).
+    pub report: Result<TremorReport, String>,
 }
 
 /// Writes the report for `points` to `path` (PNG, 1200 px wide, 500 px per point).
@@ -59,17 +60,19 @@ fn image_save(path: &Path, rgb: &[u8], width: u32, height: u32) -> Result<()> {
 type Area<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
 
 fn draw_point(area: &Area<'_>, point: &PointFigure) -> Result<(), Box<dyn std::error::Error>> {
-    let r = &point.report;
-    let title = format!(
-        "{}: peak {}, peak-to-peak {:.2} mm, RMS {:.2} mm, MDS-UPDRS amplitude bin {}, {:.0} % valid",
-        point.label,
-        r.peak_frequency_hz
-            .map_or("none".to_string(), |f| format!("{f:.2} Hz")),
-        r.amplitude_peak_to_peak_mm,
-        r.amplitude_rms_mm,
-        r.updrs_amplitude_bin,
-        100.0 * r.valid_fraction
-    );
+    let title = match &point.report {
+        Ok(r) => format!(
+            "{}: peak {}, peak-to-peak {:.2} mm, RMS {:.2} mm, MDS-UPDRS amplitude bin {}, {:.0} % valid",
+            point.label,
+            r.peak_frequency_hz
+                .map_or("none".to_string(), |f| format!("{f:.2} Hz")),
+            r.amplitude_peak_to_peak_mm,
+            r.amplitude_rms_mm,
+            r.updrs_amplitude_bin,
+            100.0 * r.valid_fraction
+        ),
+        Err(why) => format!("{}: {why}", point.label),
+    };
     let area = area.titled(&title, ("sans-serif", 18))?;
     let (top, bottom) = area.split_vertically(250);
     // Displacement over time; gaps are left open.
@@ -101,7 +104,10 @@ fn draw_point(area: &Area<'_>, point: &PointFigure) -> Result<(), Box<dyn std::e
     if !run.is_empty() {
         chart.draw_series(LineSeries::new(run, &BLUE))?;
     }
-    // Spectrum up to 20 Hz with the tremor band shaded.
+    // Spectrum up to 20 Hz with the tremor band shaded; none without figures.
+    let Ok(r) = &point.report else {
+        return Ok(());
+    };
     let spectrum: Vec<(f64, f64)> = r
         .spectrum
         .frequency_hz

@@ -29,6 +29,12 @@ pub struct SimulateArgs {
     /// Peak fingertip displacement along the optical axis, mm.
     #[arg(long, default_value_t = 2.0)]
     pub amplitude_mm: f64,
+    /// Peak sideways sway of the whole hand (camera y), mm.
+    #[arg(long, default_value_t = 0.0)]
+    pub sway_mm: f64,
+    /// Peak roll of the hand about the forearm axis (pronation–supination), degrees.
+    #[arg(long, default_value_t = 0.0)]
+    pub roll_deg: f64,
     /// Seed of the camera noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -49,6 +55,14 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
         "--amplitude-mm must be ≥ 0"
     );
     ensure!(
+        args.sway_mm.is_finite() && args.sway_mm >= 0.0,
+        "--sway-mm must be ≥ 0"
+    );
+    ensure!(
+        args.roll_deg.is_finite() && args.roll_deg >= 0.0,
+        "--roll-deg must be ≥ 0"
+    );
+    ensure!(
         !args.out.join("session.json").exists(),
         "{} already holds a session; choose another folder",
         args.out.display()
@@ -59,6 +73,8 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
         *tremor = Tremor {
             frequency_hz: args.tremor_hz,
             tip_amplitude_mm: args.amplitude_mm,
+            sway_amplitude_mm: args.sway_mm,
+            roll_amplitude_deg: args.roll_deg,
             ..*tremor
         };
     }
@@ -92,14 +108,16 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
     progress.finish();
     tremorscan::jsonfile::write_atomic(&args.out.join("session.json"), &manifest)?;
     println!(
-        "wrote {}: {} frames of {}×{} at {} FPS, tremor {} Hz, {} mm",
+        "wrote {}: {} frames of {}×{} at {} FPS, tremor {} Hz, {} mm, sway {} mm, roll {}°",
         args.out.display(),
         args.frames,
         rig.width(),
         rig.height(),
         rig.config.fps,
         args.tremor_hz,
-        args.amplitude_mm
+        args.amplitude_mm,
+        args.sway_mm,
+        args.roll_deg
     );
     Ok(())
 }

@@ -22,6 +22,16 @@ pub struct SweepArgs {
     /// Seed of the noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Sweep the tremor amplitude instead (moving fingertips, default noise): depth coverage,
+    /// gross errors and RMS of moving skin, along the optical axis and with lateral sway.
+    #[arg(long)]
+    pub motion: bool,
+    /// Peak fingertip amplitudes for `--motion`, mm, comma separated.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![0.0, 2.0, 5.0, 10.0, 20.0])]
+    pub amplitudes_mm: Vec<f64>,
+    /// Frames rendered per amplitude for `--motion` (every third window is compared).
+    #[arg(long, default_value_t = 40)]
+    pub frames: u64,
 }
 
 fn decode(rig: &VirtualRig, params: DecodeParams) -> Result<Accuracy> {
@@ -37,6 +47,9 @@ fn decode(rig: &VirtualRig, params: DecodeParams) -> Result<Accuracy> {
 }
 
 pub fn run(args: &SweepArgs) -> Result<()> {
+    if args.motion {
+        return crate::sweep_motion::run(args);
+    }
     println!("| σ (gray) | method | checks | valid % of lit | unwrap errors % of valid | RMS px |");
     println!("|---:|---|---|---:|---:|---:|");
     for &sigma in &args.sigmas {

@@ -11,7 +11,7 @@ use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::session::Session;
 use tremorscan::tremor::{
     analyze, displacements, fit_table_normal, locate, pixel_of, AnalysisOptions, TrackOptions,
-    TrackSample, TremorReport,
+    TrackSample, TremorError, TremorReport,
 };
 use tremorscan::triangulate::{PointCloud, Triangulator};
 
@@ -274,23 +274,33 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
     for (track, &(u, v)) in tracks.iter().zip(&points) {
         let times: Vec<f64> = track.iter().map(|s| s.time_s).collect();
         let d = displacements(track, &axis);
-        let r = analyze(&times, &d, &AnalysisOptions::default())
-            .with_context(|| format!("point {u},{v}"))?;
-        println!(
-            "point ({u}, {v}): peak {} Hz, peak-to-peak {:.3} mm, RMS {:.3} mm, occupancy {:.0} %, MDS-UPDRS amplitude bin {}, {} % valid",
-            r.peak_frequency_hz.map_or("none".to_string(), |f| format!("{f:.3}")),
-            r.amplitude_peak_to_peak_mm,
-            r.amplitude_rms_mm,
-            100.0 * r.occupancy,
-            r.updrs_amplitude_bin,
-            (100.0 * r.valid_fraction).round()
-        );
-        objects.push(report_json((u, v), &r, &axis));
+        let report = match analyze(&times, &d, &AnalysisOptions::default()) {
+            Ok(r) => {
+                println!(
+                    "point ({u}, {v}): peak {} Hz, peak-to-peak {:.3} mm, RMS {:.3} mm, occupancy {:.0} %, MDS-UPDRS amplitude bin {}, {} % valid",
+                    r.peak_frequency_hz.map_or("none".to_string(), |f| format!("{f:.3}")),
+                    r.amplitude_peak_to_peak_mm,
+                    r.amplitude_rms_mm,
+                    100.0 * r.occupancy,
+                    r.updrs_amplitude_bin,
+                    (100.0 * r.valid_fraction).round()
+                );
+                objects.push(report_json((u, v), &r, &axis));
+                Ok(r)
+            }
+            // Too little was measured at this point: say so, keep the other points' figures.
+            Err(e @ TremorError::TooFewValid { .. }) => {
+                println!("point ({u}, {v}): {e}");
+                objects.push(json!({ "pixel": [u, v], "figures_missing": e.to_string() }));
+                Err(e.to_string())
+            }
+            Err(e) => return Err(e).with_context(|| format!("point {u},{v}")),
+        };
         series.push(crate::report_png::PointFigure {
             label: format!("point ({u}, {v})"),
             times_s: times,
             displacement_mm: d,
-            report: r,
+            report,
         });
     }
     if let Some(png) = &args.png {

@@ -9,8 +9,8 @@ mod common;
 use std::time::Duration;
 use tremorscan::decode::backend::Window;
 use tremorscan::decode::{
-    check_window, DecodeBackend, DecodeOutput, DecodeParams, SlidingDecoder, UnwrapMethod,
-    WindowOutcome, WindowSolver,
+    check_window, DecodeBackend, DecodeOutput, DecodeParams, MotionParams, SlidingDecoder,
+    UnwrapMethod, WindowOutcome, WindowSolver,
 };
 use tremorscan::device::{Pacing, ReplayCamera};
 use tremorscan::frame::Frame;
@@ -21,6 +21,15 @@ use tremorscan::session::{write_session, Session};
 use tremorscan_ui::gpu_decode::{
     backend_for, DecoderChoice, GpuBackend, GpuContext, GpuDecoder, TimestampUse,
 };
+
+/// The decode the GPU implements: the still window (it has no motion model yet, and refuses
+/// one, tested below).
+fn still() -> DecodeParams {
+    DecodeParams {
+        motion: MotionParams::off(),
+        ..DecodeParams::default()
+    }
+}
 
 fn rig(width: usize, height: usize) -> VirtualRig {
     let config = RigConfig::paper(width, height).unwrap();
@@ -42,7 +51,7 @@ fn frames(rig: &VirtualRig, first: u64, count: u64) -> Vec<Frame> {
 fn gpu_backend(rig: &VirtualRig) -> GpuBackend {
     let ctx = GpuContext::new().unwrap();
     eprintln!("adapter: {}", ctx.adapter);
-    GpuBackend::new(ctx, &rig.sequence, &DecodeParams::default()).unwrap()
+    GpuBackend::new(ctx, &rig.sequence, &still()).unwrap()
 }
 
 /// The differences of one window's GPU result from the CPU's, asserted within bounds.
@@ -103,7 +112,7 @@ fn compare(cpu: &DecodeOutput, gpu: &DecodeOutput) {
 /// only the new frame: a wrong slot or pseudo-inverse would scramble the result.
 fn compare_stream(width: usize, height: usize, first: u64, count: u64) {
     let rig = rig(width, height);
-    let params = DecodeParams::default();
+    let params = still();
     let new = || SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params).unwrap();
     let mut cpu = new();
     // Timestamps wherever the adapter has them (lavapipe does), so their read-out is tested too.
@@ -198,17 +207,23 @@ fn the_gpu_refuses_what_it_cannot_decode() {
     let ctx = GpuContext::new().unwrap();
     let per_pixel = DecodeParams {
         unwrap: UnwrapMethod::ChebyshevPerPixel,
-        ..DecodeParams::default()
+        ..still()
     };
     let err = GpuBackend::new(ctx, &rig.sequence, &per_pixel).unwrap_err();
     assert!(err.to_string().contains("robust"), "{err}");
+    // The motion model is the CPU's alone for now: the GPU says so rather than decode without.
+    let err = GpuBackend::new(
+        GpuContext::new().unwrap(),
+        &rig.sequence,
+        &DecodeParams::default(),
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("no motion model"), "{err}");
     let gray = cps_gray(65, CpsGrayVariant::Full9, 912.0, Axis::Columns, 8).unwrap();
-    let err =
-        GpuBackend::new(GpuContext::new().unwrap(), &gray, &DecodeParams::default()).unwrap_err();
+    let err = GpuBackend::new(GpuContext::new().unwrap(), &gray, &still()).unwrap_err();
     assert!(err.to_string().contains("CPS-RGB"), "{err}");
     // `auto` never picks a software adapter; `gpu` refuses a gray sequence with the reason.
-    let (auto, _) =
-        backend_for(DecoderChoice::Auto, &rig.sequence, &DecodeParams::default()).unwrap();
+    let (auto, _) = backend_for(DecoderChoice::Auto, &rig.sequence, &still()).unwrap();
     let ctx = GpuContext::new().unwrap();
     assert_eq!(
         auto.name().starts_with("GPU"),
@@ -216,7 +231,7 @@ fn the_gpu_refuses_what_it_cannot_decode() {
         "{}",
         auto.name()
     );
-    let err = backend_for(DecoderChoice::Gpu, &gray, &DecodeParams::default())
+    let err = backend_for(DecoderChoice::Gpu, &gray, &still())
         .err()
         .unwrap();
     assert!(
@@ -229,7 +244,7 @@ fn the_gpu_refuses_what_it_cannot_decode() {
         .err()
         .unwrap();
     assert!(err.to_string().contains("robust"), "{err}");
-    let params = DecodeParams::default();
+    let params = still();
     let mut gpu = GpuDecoder::new(&ctx, 160, 100, &solver, &params).unwrap();
     let window = frames(&rig, 0, 3);
     let mut out = DecodeOutput::new(160, 100, &solver);
@@ -282,7 +297,7 @@ fn view<'a>(
 #[test]
 fn a_failing_gpu_reports_once_and_the_decode_goes_on_on_the_cpu() {
     let rig = rig(160, 100);
-    let params = DecodeParams::default();
+    let params = still();
     let mut backend = gpu_backend(&rig);
     let window = frames(&rig, 0, 3);
     let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
@@ -318,7 +333,7 @@ fn a_failing_gpu_reports_once_and_the_decode_goes_on_on_the_cpu() {
 fn a_device_error_is_returned_not_a_panic() {
     let rig = rig(160, 100);
     let ctx = GpuContext::new().unwrap();
-    let params = DecodeParams::default();
+    let params = still();
     let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
     let mut gpu = GpuDecoder::new(&ctx, 160, 100, &solver, &params).unwrap();
     let _buffer = invalid_buffer(&ctx);
@@ -357,7 +372,7 @@ fn a_pipeline_whose_gpu_fails_goes_on_on_the_cpu_and_says_so() {
     // The device reports an error before the decoder is set up: the first window fails.
     let ctx = GpuContext::new().unwrap();
     let _buffer = invalid_buffer(&ctx);
-    let backend = GpuBackend::new(ctx, &rig.sequence, &DecodeParams::default()).unwrap();
+    let backend = GpuBackend::new(ctx, &rig.sequence, &still()).unwrap();
     let config = PipelineConfig {
         decode_policy: DecodePolicy::Lossless,
         consumer_queue: 16,

@@ -88,6 +88,13 @@ pub(super) fn unsupported(
             params.unwrap
         ));
     }
+    if params.motion.model != tremorscan::decode::MotionModel::Off {
+        return Some(
+            "the GPU decoder has no motion model yet: it decodes the still window only (decode \
+             on the CPU, or turn the motion model off)"
+                .into(),
+        );
+    }
     None
 }
 
@@ -325,6 +332,7 @@ impl GpuDecoder {
         self.slots_filled = 3;
         out.timings = tremorscan::decode::StageTimings {
             solve_ms: started.elapsed().as_secs_f64() * 1e3,
+            motion_ms: 0.0,
             smooth_ms: 0.0,
             unwrap_ms: 0.0,
             device_ms,

@@ -108,16 +108,29 @@ pub fn export_report(png: &Path, tracker: &LiveTracker) -> Result<String> {
     let mut objects = Vec::new();
     for p in &tracker.points {
         let (times, d) = p.displacement_series(&axis);
-        let r = tremorscan::tremor::analyze(&times, &d, &AnalysisOptions::default())
-            .with_context(|| format!("point {}", p.name))?;
-        let mut object = report_json(p.pixel, &r, &axis);
-        object["name"] = serde_json::Value::String(p.name.clone());
-        objects.push(object);
+        let report = match tremorscan::tremor::analyze(&times, &d, &AnalysisOptions::default()) {
+            Ok(r) => {
+                let mut object = report_json(p.pixel, &r, &axis);
+                object["name"] = serde_json::Value::String(p.name.clone());
+                objects.push(object);
+                Ok(r)
+            }
+            // This point's figures are missing; the report says why and keeps the others.
+            Err(e @ tremorscan::tremor::TremorError::TooFewValid { .. }) => {
+                objects.push(serde_json::json!({
+                    "name": p.name,
+                    "pixel": [p.pixel.0, p.pixel.1],
+                    "figures_missing": e.to_string(),
+                }));
+                Err(e.to_string())
+            }
+            Err(e) => return Err(e).with_context(|| format!("point {}", p.name)),
+        };
         series.push(crate::report_png::PointFigure {
             label: p.name.clone(),
             times_s: times,
             displacement_mm: d,
-            report: r,
+            report,
         });
     }
     crate::report_png::write_report(png, &series)

@@ -94,6 +94,11 @@ pub struct Settings {
     /// Virtual rig camera image, pixels.
     pub rig_width: usize,
     pub rig_height: usize,
+    /// The virtual hand's tremor: peak fingertip flexion along the optical axis, mm; peak
+    /// sideways sway of the whole hand, mm; peak roll about the forearm, degrees.
+    pub rig_tip_amplitude_mm: f64,
+    pub rig_sway_mm: f64,
+    pub rig_roll_deg: f64,
     /// Highest fringe count n of the CPS-RGB sequence (n, n−1, n−2).
     pub fringe_count: u32,
     /// Coded projector axis: columns (true) or rows.
@@ -126,6 +131,9 @@ impl Default for Settings {
             device: DeviceChoice::VirtualRig,
             rig_width: 640,
             rig_height: 400,
+            rig_tip_amplitude_mm: 2.0,
+            rig_sway_mm: 0.0,
+            rig_roll_deg: 0.0,
             fringe_count: 65,
             code_columns: true,
             projector_bits: 6,

@@ -147,6 +147,38 @@ pub fn settings_window_ui(ctx: &egui::Context, app: &mut TremorApp) {
                         .labelled_by(l.id);
                     });
                     ui.end_row();
+                    let l = ui.label("Virtual hand tremor");
+                    ui.horizontal(|ui| {
+                        ui.add(
+                            egui::DragValue::new(&mut d.rig_tip_amplitude_mm)
+                                .range(0.0..=30.0)
+                                .speed(0.1)
+                                .prefix("flexion ")
+                                .suffix(" mm"),
+                        )
+                        .labelled_by(l.id);
+                        ui.add(
+                            egui::DragValue::new(&mut d.rig_sway_mm)
+                                .range(0.0..=20.0)
+                                .speed(0.1)
+                                .prefix("sway ")
+                                .suffix(" mm"),
+                        )
+                        .labelled_by(l.id);
+                        ui.add(
+                            egui::DragValue::new(&mut d.rig_roll_deg)
+                                .range(0.0..=20.0)
+                                .speed(0.1)
+                                .prefix("roll ")
+                                .suffix("°"),
+                        )
+                        .labelled_by(l.id)
+                        .on_hover_text(
+                            "peak values: fingertip flexion along the optical axis, sideways \
+                             sway of the whole hand, roll about the forearm",
+                        );
+                    });
+                    ui.end_row();
                     let l = ui.label("Fringes n");
                     ui.add(egui::DragValue::new(&mut d.fringe_count).range(3..=200))
                         .labelled_by(l.id)

@@ -61,8 +61,25 @@ pub fn sequence_of(settings: &Settings, projector_size: (usize, usize)) -> Resul
 
 /// The virtual rig the settings describe.
 pub fn virtual_rig(settings: &Settings) -> Result<VirtualRig> {
-    let config =
+    let mut config =
         RigConfig::paper(settings.rig_width, settings.rig_height).context("virtual rig size")?;
+    if let Some(tremor) = config.scene.hand.as_mut() {
+        // A hand-edited settings file may hold anything: negative or non-finite values are
+        // refused with the field's name.
+        for (name, value) in [
+            ("rig_tip_amplitude_mm", settings.rig_tip_amplitude_mm),
+            ("rig_sway_mm", settings.rig_sway_mm),
+            ("rig_roll_deg", settings.rig_roll_deg),
+        ] {
+            anyhow::ensure!(
+                value.is_finite() && value >= 0.0,
+                "virtual hand: {name} = {value} is not a peak amplitude (≥ 0)"
+            );
+        }
+        tremor.tip_amplitude_mm = settings.rig_tip_amplitude_mm;
+        tremor.sway_amplitude_mm = settings.rig_sway_mm;
+        tremor.roll_amplitude_deg = settings.rig_roll_deg;
+    }
     let sequence = sequence_of(settings, (config.projector.width, config.projector.height))?;
     VirtualRig::new(config, sequence).context("virtual rig")
 }

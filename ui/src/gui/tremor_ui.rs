@@ -62,6 +62,10 @@ impl TremorPanel {
             for (id, name, colour, result) in &self.results {
                 ui.colored_label(*colour, egui::RichText::new(name).strong());
                 match result {
+                    // A missing figure says why (too few valid samples) rather than show 0 mm.
+                    Err(why) if why.starts_with("figures missing") => {
+                        ui.label(why);
+                    }
                     Err(why) => {
                         ui.label(format!("waiting for samples: {why}"));
                     }

@@ -1,0 +1,779 @@
+//! Motion inside the window: one velocity per pixel, shared by the three CPS frequencies.
+//!
+//! The paper's window (§7) assumes a still scene for its 2/121 s. A fingertip in a 10 mm tremor
+//! moves by several projector pixels in that time, and every frequency's phase turns with it:
+//! `φ_f(t) = φ_f(t_c) + f_f·u·(t − t_c)`, with `u` the pixel's coordinate velocity (projector
+//! px/s) and `f_f` the frequency in rad per projector px. All three channels code the same
+//! coordinate, so `u` is one unknown per pixel.
+//!
+//! **What the still solve returns under motion.** Frame `k` of a channel samples
+//! `o + d_kᵀ·R(g·τ_k)·z`, with `z = (U, V)` the phasor at the window's centre time, `d_k =
+//! (cos θ_k, −sin θ_k)` the frame's pattern shift, `τ_k = t_k − t_c`, `g = f_f·u` and `R` a
+//! rotation. The still closed form (rows `L_k`) therefore returns `ẑ = M(g)·z` with
+//! `M(g) = Σ_k L_k·d_kᵀ·(cos(gτ_k)·I + sin(gτ_k)·J)`, a 2×2 matrix that is the identity at
+//! `g = 0` (J is the quarter turn). For shifts 0, 2π/3, 4π/3 at times −Δ, 0, Δ it adds a
+//! ripple of `g·Δ/√3·sin(2φ + …)` to each phase: a different error per frequency, which breaks
+//! the Chebyshev relation `φ_0 − 2φ_1 + φ_2 = 0` and, beyond a few millimetres of tremor, the
+//! fringe orders.
+//!
+//! **Brightness changes too.** A surface that moves turns against the projector and its shading
+//! changes: on the sides of a finger swaying sideways by 4 mm, by a third per frame. Every
+//! sample of the pixel's projector-lit light scales by `1 + κ·τ_k` (κ per second, shared by
+//! the channels and by offset and fringe alike), which adds `κ·(N(g)·z + ō_f·v)` to the still
+//! solution, with `N(g) = Σ_k τ_k·L_k·d_kᵀ·R(gτ_k)`, `v = Σ_k τ_k·L_k` and `ō_f` the slot's
+//! projector-lit offset (the offset image unmixed, less the cross-talk bias `b`). Its phase
+//! error follows the fringe once per period (the velocity's twice), and with offsets near the
+//! fringe amplitude it is the larger of the two. So the model has two unknowns per patch,
+//! `u` and `κ`.
+//!
+//! **Estimating u and κ** (a generalised phase shift with per-pixel shifts, solved by one
+//! Gauss–Newton step from the still solution, in the spirit of the per-pixel shift estimation
+//! of motion-induced error compensation, e.g. Liu et al., Opt. Express 26 (2018) 12632). The
+//! Chebyshev residual `e = angle(z_0·z̄_1·conj(z_1·z̄_2)) = φ_0 − 2φ_1 + φ_2` needs no
+//! unwrapping, is zero for a still pixel whatever its coordinate, and under motion is, to first
+//! order, `e ≈ D_u·u + D_κ·κ` with `D_u = Σ_f w_f·f_f·(ẑ × M'(0)·ẑ)/|ẑ|²`,
+//! `D_κ = Σ_f w_f·(ẑ × (N(0)·ẑ + ō_f·v))/|ẑ|²` and `w = (1, −2, 1)`. One pixel's `e` is
+//! noisy and its slopes oscillate with the fringes (differently: twice and once per period),
+//! but `u` and `κ` are smooth along a surface, so stage 1 writes the five sums of the normal
+//! equations (`W·D_u²`, `W·D_u·D_κ`, `W·D_κ²`, `W·D_u·e`, `W·D_κ·e`, with `W = 1/var(e)` from
+//! the amplitudes), the edge-aware filter of [`super::smooth`] sums them over each pixel's
+//! connected neighbourhood, and the 2×2 system gives the patch's weighted least-squares `u` and
+//! `κ`. Further steps repeat this on the corrected phasors (chord Gauss–Newton: the slopes at
+//! rest), undoing the previous correction with the forward model before applying the new one.
+//!
+//! **Correcting.** Each frequency's phasor is then
+//! `z = (M(g) + κ·N(g))⁻¹·(ẑ − κ·ō_f·v)` with `g = f_f·u`, exactly for the model, and the
+//! offset image loses the fringe that motion leaks into it (`Σ_k O_k·d_kᵀ·R(gτ_k)·z` per slot,
+//! mixed into the camera channels); the phases, amplitudes, the unit phasor and the Chebyshev check are computed
+//! again from the corrected phasors, so [`super::invalid::DISAGREEMENT`] (and the χ² test of
+//! stage 3) test the motion model's residual rather than stillness. A pixel whose frame rotates
+//! by more than [`MAX_TURN_RAD`] within the window, or whose `M` is near singular, is marked
+//! [`super::invalid::MOTION`]: it is not explained by the model and gets no depth.
+//!
+//! Only CPS-RGB windows (three frames, factored solve) take the model; other sequences decode
+//! as before.
+
+use super::fastmath::{atan2, phase_0_tau, sin_cos_phase, sin_cos_small, whole_to_byte};
+use super::smooth::{smooth_planes, Planes};
+use super::{invalid, DecodeOutput, DecodeParams, WindowSolver};
+use rayon::prelude::*;
+
+/// Largest phase turn of one frame against the window's centre that the model corrects, rad.
+/// At 2π/3 the three-step window cannot see the fringe at all (`M` is singular); a turn of 1
+/// rad keeps `det M ≥ 0.4`.
+pub const MAX_TURN_RAD: f32 = 1.0;
+/// Smallest `det(M + κN)` accepted: below it the correction amplifies the noise by more than
+/// 2.5×.
+const MIN_DET: f32 = 0.4;
+/// Largest brightness change the model accepts, per frame interval of the window (a pixel whose
+/// light halves or doubles from one frame to the next is not a surface the model describes).
+const MAX_BRIGHTNESS_STEP: f32 = 0.5;
+/// χ² (two degrees of freedom) of a patch's `(u, κ)` against rest above which the motion is
+/// taken as real: exceeded by chance with probability 10⁻⁴.
+const MOTION_SIGNIFICANCE: f32 = 18.4;
+/// The prior of a patch's velocity and brightness change before its evidence: zero, with
+/// these standard deviations (px/s and 1/s; a 20 mm tremor at 6 Hz peaks near 750 px/s on the
+/// paper's rig, a finger's side swaying 4 mm near 40/s). A patch with little evidence (the
+/// ends of the projector's range, where the Chebyshev residual cannot see motion) then stays
+/// near rest instead of fitting its noise.
+const PRIOR_VELOCITY_PX_PER_S: f32 = 400.0;
+const PRIOR_BRIGHTNESS_RATE_PER_S: f32 = 20.0;
+
+/// A 2×2 matrix, row-major.
+type M2 = [f32; 4];
+
+#[inline(always)]
+fn apply(m: &M2, (x, y): (f32, f32)) -> (f32, f32) {
+    (m[0] * x + m[1] * y, m[2] * x + m[3] * y)
+}
+
+#[inline(always)]
+fn cross((ax, ay): (f32, f32), (bx, by): (f32, f32)) -> f32 {
+    ax * by - ay * bx
+}
+
+/// The window's motion model: the still solve's response to a turning, brightening phasor.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MotionBasis {
+    /// `P_k = L_k·d_kᵀ` per frame.
+    p: [M2; 3],
+    /// `Q_k = P_k·J` per frame.
+    q: [M2; 3],
+    /// Frame time minus the window's centre time, s.
+    tau_s: [f32; 3],
+    /// `M'(0) = Σ_k τ_k·Q_k`.
+    dm: M2,
+    /// `N(0) = Σ_k τ_k·P_k`.
+    n0: M2,
+    /// `v = Σ_k τ_k·L_k`.
+    v: (f32, f32),
+    /// The offset row of the closed form, `O_k`, and each frame's `d_k`.
+    offset_row: [f32; 3],
+    d: [(f32, f32); 3],
+    /// Frequency of each slot, rad per projector px.
+    f_rad_per_px: [f32; 3],
+    /// Row of `A⁻¹` giving each slot's projector channel, column of `A` it mixes in with.
+    unmix_of_slot: [[f32; 3]; 3],
+    mix_of_slot: [[f32; 3]; 3],
+    bias_gray: [f32; 3],
+    /// The largest |κ| accepted, per second.
+    max_brightness_rate: f32,
+    /// The largest |u| whose turns stay within [`MAX_TURN_RAD`] at every frequency, px/s.
+    max_velocity: f32,
+}
+
+impl MotionBasis {
+    /// The basis of a CPS-RGB window (`None` for other windows) whose frames were taken at
+    /// `frame_times_s`, oldest first.
+    pub fn new(solver: &WindowSolver, frame_times_s: [f64; 3]) -> Option<Self> {
+        let factored = solver.factored.as_ref()?;
+        if solver.frequency_rad_per_px.len() != 3 {
+            return None;
+        }
+        let centre_s = frame_times_s.iter().sum::<f64>() / 3.0;
+        let [offset_row, cos_row, sin_row] = factored.closed_form;
+        let d: [(f32, f32); 3] = factored.shift_rad.map(|s| (s.cos(), -s.sin()));
+        let p: [M2; 3] = std::array::from_fn(|k| {
+            let (l0, l1) = (cos_row[k], sin_row[k]);
+            let (d0, d1) = d[k];
+            [l0 * d0, l0 * d1, l1 * d0, l1 * d1]
+        });
+        let q: [M2; 3] = p.map(|m| [m[1], -m[0], m[3], -m[2]]);
+        let tau_s: [f32; 3] = std::array::from_fn(|k| (frame_times_s[k] - centre_s) as f32);
+        let (mut dm, mut n0, mut v) = ([0.0; 4], [0.0; 4], (0.0, 0.0));
+        for k in 0..3 {
+            for i in 0..4 {
+                dm[i] += tau_s[k] * q[k][i];
+                n0[i] += tau_s[k] * p[k][i];
+            }
+            v.0 += tau_s[k] * cos_row[k];
+            v.1 += tau_s[k] * sin_row[k];
+        }
+        let span_s = tau_s.iter().fold(0f32, |m, t| m.max(t.abs()));
+        if !(span_s.is_finite() && span_s > 0.0) {
+            return None;
+        }
+        let f = &solver.frequency_rad_per_px;
+        let ch = factored.channel_of_slot;
+        Some(Self {
+            p,
+            q,
+            tau_s,
+            dm,
+            n0,
+            v,
+            offset_row,
+            d,
+            f_rad_per_px: [f[0], f[1], f[2]],
+            unmix_of_slot: ch.map(|c| factored.unmix[c]),
+            mix_of_slot: ch.map(|c| [0, 1, 2].map(|j| factored.mix[j][c])),
+            bias_gray: factored.bias_gray,
+            max_brightness_rate: MAX_BRIGHTNESS_STEP / span_s,
+            max_velocity: MAX_TURN_RAD / (f[0].max(f[1]).max(f[2]) * span_s),
+        })
+    }
+
+    /// `M(g) + κ·N(g)` and whether every frame's turn `g·τ_k` is within [`MAX_TURN_RAD`].
+    #[inline(always)]
+    fn response(&self, g: f32, kappa: f32) -> (M2, bool) {
+        let mut m = [0.0; 4];
+        let mut within = true;
+        for k in 0..3 {
+            let turn = g * self.tau_s[k];
+            within &= turn.abs() <= MAX_TURN_RAD;
+            let (s, c) = sin_cos_small(turn.clamp(-MAX_TURN_RAD, MAX_TURN_RAD));
+            let scale = 1.0 + kappa * self.tau_s[k];
+            let (cs, ss) = (c * scale, s * scale);
+            for i in 0..4 {
+                m[i] += cs * self.p[k][i] + ss * self.q[k][i];
+            }
+        }
+        (m, within)
+    }
+
+    /// `B = M(g) + κ·N(g)`, `∂B/∂g` and `N(g)`, and whether every turn is within
+    /// [`MAX_TURN_RAD`]: the model and its derivatives at `(g, κ)`.
+    #[inline(always)]
+    fn linearised(&self, g: f32, kappa: f32) -> Linearised {
+        let (mut b, mut db, mut n) = ([0.0; 4], [0.0; 4], [0.0; 4]);
+        let mut within = true;
+        for k in 0..3 {
+            let tau = self.tau_s[k];
+            let turn = g * tau;
+            within &= turn.abs() <= MAX_TURN_RAD;
+            let (s, c) = sin_cos_small(turn.clamp(-MAX_TURN_RAD, MAX_TURN_RAD));
+            let scale = 1.0 + kappa * tau;
+            for i in 0..4 {
+                let rotated = c * self.p[k][i] + s * self.q[k][i];
+                b[i] += scale * rotated;
+                n[i] += tau * rotated;
+                db[i] += scale * tau * (c * self.q[k][i] - s * self.p[k][i]);
+            }
+        }
+        let det = b[0] * b[3] - b[1] * b[2];
+        let inverse = [b[3] / det, -b[1] / det, -b[2] / det, b[0] / det];
+        Linearised {
+            inverse,
+            db,
+            n,
+            det,
+            within,
+        }
+    }
+
+    /// The projector-lit offset of each slot: the camera offsets less the bias, unmixed.
+    #[inline(always)]
+    fn lit_offsets(&self, offsets: [f32; 3]) -> [f32; 3] {
+        let lit = [0, 1, 2].map(|j| offsets[j] - self.bias_gray[j]);
+        self.unmix_of_slot
+            .map(|r| r[0] * lit[0] + r[1] * lit[1] + r[2] * lit[2])
+    }
+
+    /// The slopes `(D_u, D_κ)` of the Chebyshev residual at phasors `z` whose derivatives
+    /// with respect to `u` and `κ` are `dz`.
+    #[inline(always)]
+    fn residual_slopes(z: [(f32, f32); 3], dz: [[(f32, f32); 2]; 3]) -> (f32, f32) {
+        let (mut du, mut dk) = (0.0, 0.0);
+        for (slot, weight) in [(0, 1.0), (1, -2.0), (2, 1.0)] {
+            let zs = z[slot];
+            let inv = 1.0 / (zs.0 * zs.0 + zs.1 * zs.1);
+            du += weight * cross(zs, dz[slot][0]) * inv;
+            dk += weight * cross(zs, dz[slot][1]) * inv;
+        }
+        (du, dk)
+    }
+
+    /// The derivatives of the still solution at rest: `(f·M'(0)·z, N(0)·z + lit·v)`.
+    #[inline(always)]
+    fn slopes_at_rest(&self, z: [(f32, f32); 3], lit: [f32; 3]) -> [[(f32, f32); 2]; 3] {
+        std::array::from_fn(|slot| {
+            let zs = z[slot];
+            let (gx, gy) = apply(&self.dm, zs);
+            let (nx, ny) = apply(&self.n0, zs);
+            let f = self.f_rad_per_px[slot];
+            [
+                (f * gx, f * gy),
+                (nx + lit[slot] * self.v.0, ny + lit[slot] * self.v.1),
+            ]
+        })
+    }
+}
+
+/// The model at one slot's `(g, κ)`: `B⁻¹`, `∂B/∂g`, `N(g)`, `det B`, and whether the turns
+/// are within range.
+#[derive(Clone, Copy)]
+struct Linearised {
+    inverse: M2,
+    db: M2,
+    n: M2,
+    det: f32,
+    within: bool,
+}
+
+impl Linearised {
+    /// How the corrected phasor `z` of a slot with frequency `f` and lit offset `lit` moves as
+    /// the true `u` and `κ` depart from the estimate: `(B⁻¹·f·∂B/∂g·z, B⁻¹·(N·z + lit·v))`.
+    #[inline(always)]
+    fn slopes(&self, z: (f32, f32), f: f32, lit: f32, v: (f32, f32)) -> [(f32, f32); 2] {
+        let (gx, gy) = apply(&self.db, z);
+        let (nx, ny) = apply(&self.n, z);
+        [
+            apply(&self.inverse, (f * gx, f * gy)),
+            apply(&self.inverse, (nx + lit * v.0, ny + lit * v.1)),
+        ]
+    }
+}
+
+/// The per-pixel Chebyshev quantities of three phasors (slots 0, 1, 2 = frequencies n, n−1,
+/// n−2), shared by stage 1 and the motion correction.
+#[derive(Clone, Copy)]
+pub(crate) struct Chebyshev3 {
+    pub phase: [f32; 3],
+    pub amplitude: [f32; 3],
+    /// The unit phasor `z_0·z̄_1 + z_1·z̄_2`.
+    pub unit: (f32, f32),
+    /// `t = (z_0·z̄_1)·conj(z_1·z̄_2)`, whose angle is `φ_0 − 2φ_1 + φ_2`.
+    pub t: (f32, f32),
+    /// The variance of that angle over the camera noise variance.
+    pub var_over_noise: f32,
+}
+
+/// Phases, amplitudes, unit phasor and the Chebyshev residual of `z`; `gain2` holds the squared
+/// noise gains `(g_0², 4·g_1², g_2²)`.
+#[inline(always)]
+pub(crate) fn chebyshev3(z: [(f32, f32); 3], gain2: (f32, f32, f32)) -> Chebyshev3 {
+    let [(c0, s0), (c1, s1), (c2, s2)] = z;
+    let (a0, a1, a2) = (c0 * c0 + s0 * s0, c1 * c1 + s1 * s1, c2 * c2 + s2 * s2);
+    // p = z0·conj(z1) and q = z1·conj(z2) both estimate a0·a1·e^{i f1 x} (eq. 13 and its sine
+    // form); the unit phasor is their sum.
+    let (pr, pi) = (c0 * c1 + s0 * s1, s0 * c1 - c0 * s1);
+    let (qr, qi) = (c1 * c2 + s1 * s2, s1 * c2 - c1 * s2);
+    Chebyshev3 {
+        phase: [
+            phase_0_tau(s0, c0),
+            phase_0_tau(s1, c1),
+            phase_0_tau(s2, c2),
+        ],
+        amplitude: [a0.sqrt(), a1.sqrt(), a2.sqrt()],
+        unit: (pr + qr, pi + qi),
+        t: (pr * qr + pi * qi, pi * qr - pr * qi),
+        var_over_noise: gain2.0 / a0 + gain2.1 / a1 + gain2.2 / a2,
+    }
+}
+
+/// Whether the Chebyshev residual of `c` exceeds `limit` (χ² times the noise variance): the two
+/// Chebyshev equations disagree. Tested on sin² of the angle, no atan2.
+#[inline(always)]
+pub(crate) fn inconsistent(c: &Chebyshev3, limit: f32) -> bool {
+    let (tr, ti) = c.t;
+    let sin2 = ti * ti / (tr * tr + ti * ti);
+    (tr < 0.0) | (sin2 > limit * c.var_over_noise)
+}
+
+/// The squared noise gains of `solver`'s slots, as [`chebyshev3`] takes them.
+pub(crate) fn gain2(solver: &WindowSolver) -> (f32, f32, f32) {
+    let g = &solver.noise_gain;
+    (g[0] * g[0], 4.0 * g[1] * g[1], g[2] * g[2])
+}
+
+/// One pixel's evidence for its patch's `(u, κ)`: the five terms of the normal equations.
+#[derive(Clone, Copy)]
+pub(crate) struct Evidence {
+    pub uu: f32,
+    pub uk: f32,
+    pub kk: f32,
+    pub ue: f32,
+    pub ke: f32,
+}
+
+impl Evidence {
+    const NONE: Self = Self {
+        uu: 0.0,
+        uk: 0.0,
+        kk: 0.0,
+        ue: 0.0,
+        ke: 0.0,
+    };
+}
+
+/// The evidence of a still pixel (stage 1) with phasors `z`, their Chebyshev quantities `c`
+/// and camera offsets `offsets`; none where `keep` is 0 or the weights are not finite.
+#[inline(always)]
+pub(crate) fn evidence(
+    basis: &MotionBasis,
+    z: [(f32, f32); 3],
+    c: &Chebyshev3,
+    offsets: [f32; 3],
+    keep: f32,
+) -> Evidence {
+    let dz = basis.slopes_at_rest(z, basis.lit_offsets(offsets));
+    evidence_with(z, dz, c, keep)
+}
+
+/// The evidence of a pixel whose phasors `z` move by `dz` per unit of `u` and `κ`.
+#[inline(always)]
+fn evidence_with(
+    z: [(f32, f32); 3],
+    dz: [[(f32, f32); 2]; 3],
+    c: &Chebyshev3,
+    keep: f32,
+) -> Evidence {
+    let e = atan2(c.t.1, c.t.0);
+    let (du, dk) = MotionBasis::residual_slopes(z, dz);
+    let w = keep / c.var_over_noise;
+    let ok = w.is_finite() & du.is_finite() & dk.is_finite() & (keep > 0.0);
+    if ok {
+        Evidence {
+            uu: w * du * du,
+            uk: w * du * dk,
+            kk: w * dk * dk,
+            ue: w * du * e,
+            ke: w * dk * e,
+        }
+    } else {
+        Evidence::NONE
+    }
+}
+
+/// Sums the evidence over each pixel's connected patch (two passes of the edge-aware filter),
+/// then corrects the phasors: one Gauss–Newton step. Stage 1 (or the previous step) left the
+/// evidence in `unit_re`, `unit_im`, `support` (`uu`, `uk`, `kk`) and `motion_evidence`
+/// (`ue`, `ke`, count).
+pub(crate) fn motion_step(
+    solver: &WindowSolver,
+    params: &DecodeParams,
+    basis: &MotionBasis,
+    kind: StepKind,
+    last: bool,
+    out: &mut DecodeOutput,
+) {
+    let decay = params.motion.decay;
+    {
+        smooth_planes(&mut Planes::of_unit_phasor(out), decay);
+        let n = out.width * out.height;
+        let (e0, rest) = out.motion_evidence.split_at_mut(n);
+        let (e1, e2) = rest.split_at_mut(n);
+        let mut planes = Planes {
+            planes: [e0, e1, e2],
+            w: out.width,
+            h: out.height,
+            connect: &out.connect,
+            tmp: &mut out.smooth_tmp,
+            band_scratch: &mut out.band_scratch,
+            band_scratch_len: out.band_scratch_len,
+            vertical_state: &mut out.vertical_state,
+        };
+        smooth_planes(&mut planes, decay);
+    }
+    let step = Step {
+        basis,
+        gain2: gain2(solver),
+        limit: params.max_disagreement_chi2 * params.camera_noise_gray.powi(2),
+        min_amplitude: params.min_amplitude,
+        kind,
+        last,
+        inv_noise2: params.camera_noise_gray.powi(-2),
+        prior_u: (params.camera_noise_gray / PRIOR_VELOCITY_PX_PER_S).powi(2),
+        prior_k: (params.camera_noise_gray / PRIOR_BRIGHTNESS_RATE_PER_S).powi(2),
+    };
+    let w = out.width;
+    let n = w * out.height;
+    let (ev0, rest) = out.motion_evidence.split_at_mut(n);
+    let (ev1, ev2) = rest.split_at_mut(n);
+    out.phase_rad
+        .par_chunks_mut(3 * w)
+        .zip(out.amplitude.par_chunks_mut(3 * w))
+        .zip(out.colour.par_chunks_mut(3 * w))
+        .zip(out.unit_re.par_chunks_mut(w))
+        .zip(out.unit_im.par_chunks_mut(w))
+        .zip(out.support.par_chunks_mut(w))
+        .zip(ev0.par_chunks_mut(w))
+        .zip(ev1.par_chunks_mut(w))
+        .zip(ev2.par_chunks_mut(w))
+        .zip(out.invalid.par_chunks_mut(w))
+        .zip(out.velocity_px_per_s.par_chunks_mut(w))
+        .zip(out.brightness_rate_per_s.par_chunks_mut(w))
+        .for_each(
+            |(
+                (
+                    (((((((((phase, amp), colour), re), im), support), ue), ke), count), flags),
+                    velocity,
+                ),
+                brightness,
+            )| {
+                correct_row(
+                    &step,
+                    RowPlanes {
+                        phase,
+                        amp,
+                        colour,
+                        uu: re,
+                        uk: im,
+                        kk: support,
+                        ue,
+                        ke,
+                        count,
+                        flags,
+                        velocity,
+                        brightness,
+                    },
+                );
+            },
+        );
+}
+
+/// Where a step starts from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum StepKind {
+    /// From rest: the phase planes hold the still solution; the step solves the patch's
+    /// evidence for `(u, κ)`.
+    FromRest,
+    /// From the previous step: the phase planes hold its correction at the values in the
+    /// velocity and brightness planes, which it undoes before adding the patch's step.
+    Refine,
+}
+
+/// What one Gauss–Newton step of [`correct_row`] needs.
+struct Step<'a> {
+    basis: &'a MotionBasis,
+    gain2: (f32, f32, f32),
+    /// χ² limit times the noise variance.
+    limit: f32,
+    min_amplitude: f32,
+    kind: StepKind,
+    /// The priors' information in the units of the evidence (`σ²/sd²`: the evidence is
+    /// weighted by `1/var(e)` over the camera noise variance).
+    prior_u: f32,
+    prior_k: f32,
+    /// `1/σ²` of the camera noise.
+    inv_noise2: f32,
+    /// Write the corrected unit phasor and reasons (else the next step's evidence).
+    last: bool,
+}
+
+/// One row of every plane a step reads and writes. On the last step `uu`, `uk` and `kk` (the
+/// unit phasor's planes) receive the unit phasor and the support.
+struct RowPlanes<'a> {
+    phase: &'a mut [f32],
+    amp: &'a mut [f32],
+    colour: &'a mut [f32],
+    uu: &'a mut [f32],
+    uk: &'a mut [f32],
+    kk: &'a mut [f32],
+    ue: &'a mut [f32],
+    ke: &'a mut [f32],
+    count: &'a mut [f32],
+    flags: &'a mut [u8],
+    velocity: &'a mut [f32],
+    brightness: &'a mut [f32],
+}
+
+/// The first `w` values of the three planes of a row-planar row of `3·w` values.
+#[inline(always)]
+fn split3(row: &mut [f32], w: usize) -> [&mut [f32]; 3] {
+    let (a, rest) = row.split_at_mut(w);
+    let (b, c) = rest.split_at_mut(w);
+    [a, b, &mut c[..w]]
+}
+
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
+fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
+    let basis = step.basis;
+    let w = row.flags.len();
+    let [ph0, ph1, ph2] = split3(row.phase, w);
+    let [am0, am1, am2] = split3(row.amp, w);
+    let [co0, co1, co2] = split3(row.colour, w);
+    let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
+    let kappa_max = basis.max_brightness_rate;
+    for x in 0..w {
+        // The patch's step: the ridge-regularised weighted least squares of e = D_u·u + D_κ·κ.
+        let (a, b, c) = (
+            row.uu[x] + step.prior_u,
+            row.uk[x],
+            row.kk[x] + step.prior_k,
+        );
+        let det = a * c - b * b;
+        let (ru, rk) = (row.ue[x], row.ke[x]);
+        let solvable = (det > 0.0) & (row.count[x] > 0.0);
+        let (du, dk) = if solvable {
+            ((c * ru - b * rk) / det, (a * rk - b * ru) / det)
+        } else {
+            (0.0, 0.0)
+        };
+        let (u0, k0) = if step.kind == StepKind::FromRest {
+            (0.0, 0.0)
+        } else {
+            (row.velocity[x], row.brightness[x])
+        };
+        // Kept where the model is defined, so that the next step's slopes are the model's.
+        let u = (u0 + du).clamp(-basis.max_velocity, basis.max_velocity);
+        let kappa = (k0 + dk).clamp(-kappa_max, kappa_max);
+        let bright_ok = (k0 + dk).abs() <= kappa_max;
+        row.velocity[x] = u;
+        row.brightness[x] = kappa;
+        let phases = [ph0[x], ph1[x], ph2[x]];
+        let amps = [am0[x], am1[x], am2[x]];
+        let offsets = [co0[x], co1[x], co2[x]];
+        let lit = basis.lit_offsets(offsets);
+        let mut within = bright_ok;
+        let mut worst_det = f32::INFINITY;
+        let (vx, vy) = basis.v;
+        let mut dz = [[(0.0, 0.0); 2]; 3];
+        let mut still = [(0.0, 0.0); 3];
+        let z: [(f32, f32); 3] = std::array::from_fn(|slot| {
+            let (s, c) = sin_cos_phase(phases[slot]);
+            let mut seen = (amps[slot] * c, amps[slot] * s);
+            let f = basis.f_rad_per_px[slot];
+            if step.kind == StepKind::Refine {
+                // What the still solve saw: the previous correction undone.
+                let (x, y) = apply(&basis.response(f * u0, k0).0, seen);
+                seen = (x + k0 * lit[slot] * vx, y + k0 * lit[slot] * vy);
+            }
+            still[slot] = seen;
+            let model = basis.linearised(f * u, kappa);
+            within &= model.within;
+            worst_det = worst_det.min(model.det);
+            let lit_term = (kappa * lit[slot] * vx, kappa * lit[slot] * vy);
+            let z = apply(&model.inverse, (seen.0 - lit_term.0, seen.1 - lit_term.1));
+            dz[slot] = model.slopes(z, f, lit[slot], basis.v);
+            z
+        });
+        // On the last step the motion stays only where the patch's evidence shows it: its
+        // (u, κ) differ from rest by more than the noise (a χ² of the estimate with two degrees
+        // of freedom above `MOTION_SIGNIFICANCE`). Elsewhere (still surfaces, and the ends of
+        // the projector's range, where the residual is blind to motion but the unit phase is
+        // not) the still solution is kept.
+        let significance = (a * u * u + 2.0 * b * u * kappa + c * kappa * kappa) * step.inv_noise2;
+        let moving = !step.last | (significance > MOTION_SIGNIFICANCE);
+        let (u, kappa) = if moving { (u, kappa) } else { (0.0, 0.0) };
+        let z = if moving { z } else { still };
+        let within = within | !moving;
+        let worst_det = if moving { worst_det } else { 1.0 };
+        let cheb = chebyshev3(z, step.gain2);
+        ph0[x] = cheb.phase[0];
+        ph1[x] = cheb.phase[1];
+        ph2[x] = cheb.phase[2];
+        am0[x] = cheb.amplitude[0];
+        am1[x] = cheb.amplitude[1];
+        am2[x] = cheb.amplitude[2];
+        if !step.last {
+            // The next step's evidence, from the corrected phasors. The flags still hold stage
+            // 1's signal reasons alone.
+            let keep = if row.flags[x] == 0 { 1.0 } else { 0.0 };
+            let ev = evidence_with(z, dz, &cheb, keep);
+            row.uu[x] = ev.uu;
+            row.uk[x] = ev.uk;
+            row.kk[x] = ev.kk;
+            row.ue[x] = ev.ue;
+            row.ke[x] = ev.ke;
+            row.count[x] = keep;
+            continue;
+        }
+        // The offset image without the fringe that the motion leaked into it.
+        let leak: [f32; 3] = std::array::from_fn(|slot| {
+            let g = basis.f_rad_per_px[slot] * u;
+            let mut r = 0.0;
+            for k in 0..3 {
+                let (s, cs) =
+                    sin_cos_small((g * basis.tau_s[k]).clamp(-MAX_TURN_RAD, MAX_TURN_RAD));
+                let (dx, dy) = basis.d[k];
+                let scale = 1.0 + kappa * basis.tau_s[k];
+                // d_kᵀ·R(gτ_k)·z, scaled by the frame's brightness, less the still d_kᵀ·z
+                // (which the offset row cancels).
+                let turned = (dx * cs + dy * s, -dx * s + dy * cs);
+                r += basis.offset_row[k]
+                    * (scale * cross_dot(turned, z[slot]) - cross_dot(basis.d[k], z[slot]));
+            }
+            r
+        });
+        co0[x] = offsets[0] - dot3(basis.mix_of_slot_row(0), leak);
+        co1[x] = offsets[1] - dot3(basis.mix_of_slot_row(1), leak);
+        co2[x] = offsets[2] - dot3(basis.mix_of_slot_row(2), leak);
+        let min_amp = cheb.amplitude[0]
+            .min(cheb.amplitude[1])
+            .min(cheb.amplitude[2]);
+        let low = min_amp.is_nan() | (min_amp < step.min_amplitude);
+        let unexplained = !within | (worst_det < MIN_DET);
+        let saturated = row.flags[x] & invalid::SATURATED != 0;
+        let reason = bit(low, invalid::LOW_AMPLITUDE)
+            + bit(saturated, invalid::SATURATED)
+            + bit(inconsistent(&cheb, step.limit), invalid::DISAGREEMENT)
+            + bit(unexplained, invalid::MOTION);
+        let keep = if reason == 0.0 { 1.0 } else { 0.0 };
+        // Only a valid pixel's motion is carried on to the next window.
+        row.velocity[x] = u * keep;
+        row.brightness[x] = kappa * keep;
+        row.kk[x] = keep;
+        row.uu[x] = cheb.unit.0 * keep;
+        row.uk[x] = cheb.unit.1 * keep;
+        row.flags[x] = whole_to_byte(reason);
+    }
+}
+
+/// `aᵀ·b` of two 2-vectors.
+#[inline(always)]
+fn cross_dot(a: (f32, f32), b: (f32, f32)) -> f32 {
+    a.0 * b.0 + a.1 * b.1
+}
+
+#[inline(always)]
+fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+impl MotionBasis {
+    /// Row `j` of `A` with its columns in slot order: how each slot's light reaches camera
+    /// channel `j`.
+    #[inline(always)]
+    fn mix_of_slot_row(&self, j: usize) -> [f32; 3] {
+        [
+            self.mix_of_slot[0][j],
+            self.mix_of_slot[1][j],
+            self.mix_of_slot[2][j],
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::color::CrossTalk;
+    use crate::pattern::{cps_rgb, Axis};
+
+    /// A channel's three samples of a phasor turning at `g` rad/s, through the still closed
+    /// form: what stage 1 returns.
+    fn still_solve(solver: &WindowSolver, z: (f32, f32), g: f32, times: [f64; 3]) -> (f32, f32) {
+        let f = solver.factored.as_ref().unwrap();
+        let centre = times.iter().sum::<f64>() / 3.0;
+        let (mut u, mut v) = (0.0, 0.0);
+        for k in 0..3 {
+            let turn = g * (times[k] - centre) as f32;
+            let (x, y) = (
+                z.0 * turn.cos() - z.1 * turn.sin(),
+                z.0 * turn.sin() + z.1 * turn.cos(),
+            );
+            let sample = 40.0 + f.shift_rad[k].cos() * x - f.shift_rad[k].sin() * y;
+            u += f.closed_form[1][k] * sample;
+            v += f.closed_form[2][k] * sample;
+        }
+        (u, v)
+    }
+
+    #[test]
+    fn the_response_inverts_what_the_still_solve_does_to_a_moving_phasor() {
+        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
+        for order in [[0, 1, 2], [1, 2, 0], [2, 0, 1]] {
+            let solver = WindowSolver::new(&seq, &order, &CrossTalk::paper()).unwrap();
+            let times = [0.0, 1.0 / 121.0, 2.0 / 121.0];
+            let basis = MotionBasis::new(&solver, times).unwrap();
+            for g in [0.0f32, 30.0, -60.0, 110.0] {
+                for phase in [0.3f32, 1.9, 4.0] {
+                    let z = (25.0 * phase.cos(), 25.0 * phase.sin());
+                    let seen = still_solve(&solver, z, g, times);
+                    let (m, within) = basis.response(g, 0.0);
+                    assert!(within);
+                    let predicted = apply(&m, z);
+                    assert!(
+                        (predicted.0 - seen.0).abs() < 1e-3 && (predicted.1 - seen.1).abs() < 1e-3,
+                        "{order:?} g {g}: {predicted:?} vs {seen:?}"
+                    );
+                    if g != 0.0 {
+                        // Motion does bend the still solution: the test is not vacuous.
+                        let bent = (seen.0 - z.0).hypot(seen.1 - z.1);
+                        assert!(bent > 0.05, "{bent}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_residual_slope_predicts_the_chebyshev_residual_of_slow_motion() {
+        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
+        let solver = WindowSolver::new(&seq, &[1, 2, 0], &CrossTalk::paper()).unwrap();
+        let times = [0.0, 1.0 / 121.0, 2.0 / 121.0];
+        let basis = MotionBasis::new(&solver, times).unwrap();
+        let f = basis.f_rad_per_px;
+        let x0 = 437.3f32;
+        // A slow velocity, so that first order is exact to a few per cent.
+        let u = 2.0f32; // px/s
+        let z: [(f32, f32); 3] = std::array::from_fn(|s| {
+            let phase = f[s] * x0;
+            let z = (30.0 * phase.cos(), 30.0 * phase.sin());
+            still_solve(&solver, z, f[s] * u, times)
+        });
+        let c = chebyshev3(z, gain2(&solver));
+        let e = c.t.1.atan2(c.t.0);
+        let slopes = MotionBasis::residual_slopes(z, basis.slopes_at_rest(z, [60.0; 3]));
+        let predicted = slopes.0 * u;
+        assert!(
+            (e - predicted).abs() < 0.05 * predicted.abs() + 1e-6,
+            "{e} vs {predicted}"
+        );
+        assert!(predicted.abs() > 1e-4, "{predicted}");
+    }
+}
