@@ -306,12 +306,14 @@ mod tests {
         })
         .unwrap();
         assert!(report.windows >= 3);
-        assert_eq!(report.stages.len(), 8);
+        // Frame in, solve, motion, smooth, unwrap, decode, triangulate, hand-off, thread total.
+        assert_eq!(report.stages.len(), 9);
         for s in &report.stages {
             assert!(s.median_ms >= 0.0 && s.p99_ms >= s.median_ms, "{s:?}");
         }
         assert!(report.valid_points > 1000, "{}", report.valid_points);
-        let total = report.stages[7].median_ms;
+        let total = report.stages[8].median_ms;
+        assert_eq!(report.stages[8].name, "decode thread (total)");
         assert!((report.fps_sustainable - 1e3 / total).abs() < 1e-9);
         let err = run(&BenchConfig {
             width: 32,

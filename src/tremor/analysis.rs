@@ -388,10 +388,18 @@ mod tests {
             .map(|(i, v)| if i % 13 < 4 { *v } else { None })
             .collect();
         let e = analyze(&t, &sparse, &exact()).unwrap_err();
-        assert!(
-            matches!(&e, TremorError::TooFewValid { why } if why.contains("31 %")),
-            "{e}"
-        );
+        let TremorError::TooFewValid { why } = &e else {
+            panic!("{e}");
+        };
+        // The share is counted on the resampled grid, so it may differ from 4/13 by a sample
+        // or two at either end of the record.
+        let share: f64 = why
+            .strip_prefix("only ")
+            .and_then(|w| w.split(' ').next())
+            .and_then(|p| p.parse().ok())
+            .unwrap();
+        assert!((share - 100.0 * 4.0 / 13.0).abs() <= 2.0, "{why}");
+        assert!(why.contains("at least 50 %"), "{why}");
         // Enough data gives the figure.
         let r = analyze(&t, &v, &exact()).unwrap();
         assert!((r.amplitude_peak_to_peak_mm - 14.0).abs() < 0.3, "{r:?}");
