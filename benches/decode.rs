@@ -5,7 +5,9 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use std::time::Duration;
-use tremorscan::decode::{decode_window, DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
+use tremorscan::decode::{
+    decode_window, DecodeOutput, DecodeParams, MotionParams, UnwrapMethod, WindowSolver,
+};
 use tremorscan::frame::Frame;
 use tremorscan::rig::{RigConfig, VirtualRig};
 use tremorscan::triangulate::{PointCloud, Triangulator};
@@ -40,12 +42,28 @@ fn bench_decode(c: &mut Criterion) {
         let refs: Vec<&Frame> = frames.iter().collect();
         let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
         let mut out = DecodeOutput::new(w, h, &solver);
-        for (name, method) in [
-            ("robust", UnwrapMethod::ChebyshevRobust),
-            ("per_pixel", UnwrapMethod::ChebyshevPerPixel),
+        // The robust decode with its motion model (the default), the same without it (the
+        // paper's still window: the motion model's cost is the difference), and per pixel.
+        for (name, method, motion) in [
+            (
+                "robust",
+                UnwrapMethod::ChebyshevRobust,
+                MotionParams::default(),
+            ),
+            (
+                "robust_still",
+                UnwrapMethod::ChebyshevRobust,
+                MotionParams::off(),
+            ),
+            (
+                "per_pixel",
+                UnwrapMethod::ChebyshevPerPixel,
+                MotionParams::default(),
+            ),
         ] {
             let params = DecodeParams {
                 unwrap: method,
+                motion,
                 ..DecodeParams::default()
             };
             group.bench_with_input(BenchmarkId::new(name, format!("{w}x{h}")), &(), |b, ()| {

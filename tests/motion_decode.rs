@@ -42,15 +42,19 @@ fn a_ten_millimetre_tremor_keeps_its_fingertips() {
     let coverage = motion.moving.coverage().unwrap();
     let gross = motion.moving.gross_rate().unwrap();
     let rms = motion.moving.rms_mm().unwrap();
-    // The sweep measures 90.8 %, 1.6 % and 0.186 mm over 13 windows; the still window 68 %,
-    // 18 % and 0.33 mm.
-    assert!(coverage >= 0.85, "coverage {coverage}");
-    assert!(gross <= 0.03, "gross {gross}");
-    assert!(rms <= 0.22, "RMS {rms}");
+    // Over these four windows: 91.3 %, 1.5 % and 0.160 mm (the still window 71.7 %, 11.8 %
+    // and 0.27 mm; pooling steps rather than absolute evidence, 90.1 %, 1.8 % and 0.164 mm).
+    // The sweep's 13 windows: docs/accuracy.md.
+    assert!(coverage >= 0.88, "coverage {coverage}");
+    assert!(gross <= 0.02, "gross {gross}");
+    assert!(rms <= 0.2, "RMS {rms}");
     assert!(still.moving.coverage().unwrap() < 0.8);
     assert!(still.moving.gross_rate().unwrap() > 0.08);
     // Still skin keeps its accuracy: the still hand's RMS (0.08 mm) may not grow by 5 %.
-    let (a, b) = (still.still.rms_mm().unwrap(), motion.still.rms_mm().unwrap());
+    let (a, b) = (
+        still.still.rms_mm().unwrap(),
+        motion.still.rms_mm().unwrap(),
+    );
     assert!(b <= 1.05 * a, "still skin RMS {b} against {a}");
 }
 
@@ -62,9 +66,11 @@ fn a_swaying_hand_is_measured_despite_its_changing_shading() {
     let (still, motion) = both(&rig(5.0, 4.0, 3.0));
     let coverage = motion.moving.coverage().unwrap();
     let gross = motion.moving.gross_rate().unwrap();
-    // The sweep: 89.7 % and 1.8 %; the still window 70 % and 12.9 %.
-    assert!(coverage >= 0.85, "coverage {coverage}");
-    assert!(gross <= 0.03, "gross {gross}");
+    // Over these four windows: 95.9 % and 0.93 % (the still window 67.7 % and 17.7 %; pooling
+    // steps rather than absolute evidence, with the narrower patch of decay 0.7, 89.9 % and
+    // 1.9 %, which fails both bounds).
+    assert!(coverage >= 0.93, "coverage {coverage}");
+    assert!(gross <= 0.015, "gross {gross}");
     assert!(still.moving.gross_rate().unwrap() > 0.08);
 }
 
@@ -72,7 +78,13 @@ fn a_swaying_hand_is_measured_despite_its_changing_shading() {
 fn a_still_hand_loses_nothing() {
     let (still, motion) = both(&rig(0.0, 0.0, 0.0));
     let (a, b) = (still.still, motion.still);
-    assert!(b.coverage().unwrap() >= a.coverage().unwrap() - 1e-3, "{a:?} {b:?}");
-    assert!(b.rms_mm().unwrap() <= 1.05 * a.rms_mm().unwrap(), "{a:?} {b:?}");
+    assert!(
+        b.coverage().unwrap() >= a.coverage().unwrap() - 1e-3,
+        "{a:?} {b:?}"
+    );
+    assert!(
+        b.rms_mm().unwrap() <= 1.05 * a.rms_mm().unwrap(),
+        "{a:?} {b:?}"
+    );
     assert_eq!(b.gross, 0, "{b:?}");
 }

@@ -38,8 +38,19 @@
 //! equations (`W·D_u²`, `W·D_u·D_κ`, `W·D_κ²`, `W·D_u·e`, `W·D_κ·e`, with `W = 1/var(e)` from
 //! the amplitudes), the edge-aware filter of [`super::smooth`] sums them over each pixel's
 //! connected neighbourhood, and the 2×2 system gives the patch's weighted least-squares `u` and
-//! `κ`. Further steps repeat this on the corrected phasors (chord Gauss–Newton: the slopes at
-//! rest), undoing the previous correction with the forward model before applying the new one.
+//! `κ`. Further steps repeat this on the corrected phasors, undoing the previous correction
+//! with the forward model before applying the new one. Each pixel's evidence is written in
+//! absolute terms, `e + D_u·u + D_κ·κ` at the `(u, κ)` it was corrected with, so the patch
+//! solves for its velocity rather than pooling steps taken from different starting points
+//! (pooled steps let a pixel that started at rest drag its fast neighbours back towards it).
+//! Measured on the rig at a 10 mm tremor: 94.4 % of the moving skin kept with 0.97 % gross
+//! errors, against 90.8 % and 1.6 % with pooled steps.
+//!
+//! **What was tried and dropped.** The velocity predicted per pixel from the two previous
+//! windows' coordinates (the sliding window's own motion), as the steps' starting point: under
+//! motion the decoded coordinates carry errors of a few tenths of a pixel, so only about 70 %
+//! of those predictions came within 60 px/s of the truth, and started there the steps kept
+//! 82 % of the moving skin with 10 % gross errors.
 //!
 //! **Correcting.** Each frequency's phasor is then
 //! `z = (M(g) + κ·N(g))⁻¹·(ẑ − κ·ō_f·v)` with `g = f_f·u`, exactly for the model, and the
@@ -367,19 +378,22 @@ pub(crate) fn evidence(
     keep: f32,
 ) -> Evidence {
     let dz = basis.slopes_at_rest(z, basis.lit_offsets(offsets));
-    evidence_with(z, dz, c, keep)
+    evidence_with(z, dz, c, keep, (0.0, 0.0))
 }
 
-/// The evidence of a pixel whose phasors `z` move by `dz` per unit of `u` and `κ`.
+/// The evidence of a pixel whose phasors `z`, corrected at `(u, κ) = at`, move by `dz` per
+/// unit of `u` and `κ`. It is in absolute terms, `e + D_u·u + D_κ·κ` against `(D_u, D_κ)`, so
+/// that pixels linearised at different velocities pool into one estimate of their patch's.
 #[inline(always)]
 fn evidence_with(
     z: [(f32, f32); 3],
     dz: [[(f32, f32); 2]; 3],
     c: &Chebyshev3,
     keep: f32,
+    at: (f32, f32),
 ) -> Evidence {
-    let e = atan2(c.t.1, c.t.0);
     let (du, dk) = MotionBasis::residual_slopes(z, dz);
+    let e = atan2(c.t.1, c.t.0) + du * at.0 + dk * at.1;
     let w = keep / c.var_over_noise;
     let ok = w.is_finite() & du.is_finite() & dk.is_finite() & (keep > 0.0);
     if ok {
@@ -489,7 +503,7 @@ pub(crate) enum StepKind {
     /// evidence for `(u, κ)`.
     FromRest,
     /// From the previous step: the phase planes hold its correction at the values in the
-    /// velocity and brightness planes, which it undoes before adding the patch's step.
+    /// velocity and brightness planes, which it undoes before solving the patch's evidence.
     Refine,
 }
 
@@ -559,20 +573,21 @@ fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
         let det = a * c - b * b;
         let (ru, rk) = (row.ue[x], row.ke[x]);
         let solvable = (det > 0.0) & (row.count[x] > 0.0);
-        let (du, dk) = if solvable {
-            ((c * ru - b * rk) / det, (a * rk - b * ru) / det)
-        } else {
-            (0.0, 0.0)
-        };
         let (u0, k0) = if step.kind == StepKind::FromRest {
             (0.0, 0.0)
         } else {
             (row.velocity[x], row.brightness[x])
         };
+        // The evidence is absolute: its solution is the patch's (u, κ), not a step.
+        let (u_new, k_new) = if solvable {
+            ((c * ru - b * rk) / det, (a * rk - b * ru) / det)
+        } else {
+            (u0, k0)
+        };
         // Kept where the model is defined, so that the next step's slopes are the model's.
-        let u = (u0 + du).clamp(-basis.max_velocity, basis.max_velocity);
-        let kappa = (k0 + dk).clamp(-kappa_max, kappa_max);
-        let bright_ok = (k0 + dk).abs() <= kappa_max;
+        let u = u_new.clamp(-basis.max_velocity, basis.max_velocity);
+        let kappa = k_new.clamp(-kappa_max, kappa_max);
+        let bright_ok = k_new.abs() <= kappa_max;
         row.velocity[x] = u;
         row.brightness[x] = kappa;
         let phases = [ph0[x], ph1[x], ph2[x]];
@@ -624,7 +639,7 @@ fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
             // The next step's evidence, from the corrected phasors. The flags still hold stage
             // 1's signal reasons alone.
             let keep = if row.flags[x] == 0 { 1.0 } else { 0.0 };
-            let ev = evidence_with(z, dz, &cheb, keep);
+            let ev = evidence_with(z, dz, &cheb, keep, (u, kappa));
             row.uu[x] = ev.uu;
             row.uk[x] = ev.uk;
             row.kk[x] = ev.kk;
