@@ -26,6 +26,7 @@ mod connect;
 mod consistency;
 pub mod fastmath;
 pub mod motion;
+pub mod motion_noise;
 pub mod phasor;
 pub mod reference;
 pub mod smooth;
@@ -300,6 +301,8 @@ pub struct DecodeOutput {
     pub(crate) vertical_state: Vec<f32>,
     pub(crate) band_scratch: Vec<f32>,
     pub(crate) band_scratch_len: usize,
+    /// The motion model's noise estimate's samples.
+    pub(crate) noise_scratch: Vec<f32>,
 }
 
 impl DecodeOutput {
@@ -333,6 +336,7 @@ impl DecodeOutput {
             vertical_state: vec![0.0; 3 * width * height.div_ceil(smooth::VERTICAL_BLOCK_ROWS)],
             band_scratch: vec![0.0; bands * band_scratch_len],
             band_scratch_len,
+            noise_scratch: Vec::with_capacity(n / (motion_noise::GRID_STEP_PX.pow(2)) + width),
         }
     }
 
@@ -380,7 +384,8 @@ impl DecodeOutput {
             + self.support.capacity()
             + self.smooth_tmp.capacity()
             + self.vertical_state.capacity()
-            + self.band_scratch.capacity();
+            + self.band_scratch.capacity()
+            + self.noise_scratch.capacity();
         let bytes = self.invalid.capacity() + self.connect.capacity() + self.jump.capacity();
         floats * std::mem::size_of::<f32>() + bytes
     }
@@ -506,6 +511,14 @@ pub(crate) fn finish_window(
     let solved = Instant::now();
     if let Some(basis) = motion_basis {
         smooth::compute_connectivity(out, &params.smoothing);
+        // The significance test's noise: the configured level, or the higher one the window's
+        // residuals show.
+        let mut scratch = std::mem::take(&mut out.noise_scratch);
+        let measured = motion_noise::residual_noise_gray(solver, out, &mut scratch);
+        out.noise_scratch = scratch;
+        let noise_gray = measured.map_or(params.camera_noise_gray, |m| {
+            m.max(params.camera_noise_gray)
+        });
         let iterations = params.motion.iterations;
         for i in 0..iterations {
             let kind = if i == 0 {
@@ -513,7 +526,8 @@ pub(crate) fn finish_window(
             } else {
                 motion::StepKind::Refine
             };
-            motion::motion_step(solver, params, basis, kind, i + 1 == iterations, out);
+            let last = i + 1 == iterations;
+            motion::motion_step(solver, params, noise_gray, basis, kind, last, out);
         }
     }
     let corrected = Instant::now();

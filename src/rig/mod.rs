@@ -17,6 +17,7 @@ pub mod noise;
 pub mod primitives;
 pub mod render;
 pub mod scene;
+pub mod tremor_eval;
 pub mod truth;
 
 pub use board::Chessboard;

@@ -32,6 +32,9 @@ pub struct SweepArgs {
     /// Frames rendered per amplitude for `--motion` (every third window is compared).
     #[arg(long, default_value_t = 40)]
     pub frames: u64,
+    /// Frames of the fingertip trials for `--motion` (3 s at 121 FPS; 0 leaves them out).
+    #[arg(long, default_value_t = 363)]
+    pub tip_frames: u64,
 }
 
 fn decode(rig: &VirtualRig, params: DecodeParams) -> Result<Accuracy> {

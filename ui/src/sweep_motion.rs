@@ -5,13 +5,17 @@
 //! (the whole hand swaying sideways and rolling about the forearm). The same frames are decoded
 //! by the still model (the paper's window, motion ignored) and by the motion model, and compared
 //! with the truth by [`tremorscan::rig::motion_eval`]: coverage, gross errors and RMS of the
-//! moving skin, RMS of the still skin.
+//! moving skin, RMS of the still skin. A second table gives, for the same rigs, what `tremorscan
+//! analyze` reports at the index fingertip's pixel over a 3 s trial against the truth there
+//! ([`tremorscan::rig::tremor_eval`]), or why it reports no figure.
 
 use crate::sweep::SweepArgs;
 use anyhow::{ensure, Context, Result};
 use tremorscan::decode::{DecodeParams, MotionParams};
 use tremorscan::rig::motion_eval::{evaluate_motion, MotionAccuracy, GROSS_MM};
+use tremorscan::rig::tremor_eval::{fingertip_tremor, FingertipTremor};
 use tremorscan::rig::{RigConfig, VirtualRig};
+use tremorscan::tremor::{TremorError, TremorReport};
 
 /// Lateral sway of the "with sway" rows: peak sideways displacement, mm, and peak roll about
 /// the forearm, degrees.
@@ -69,23 +73,12 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     for sway in [false, true] {
         for &amplitude_mm in &args.amplitudes_mm {
             let rig = motion_rig(args.width, args.height, amplitude_mm, sway, args.seed)?;
-            for (name, motion) in [
-                ("still model", MotionParams::off()),
-                ("motion model", MotionParams::default()),
-            ] {
-                let params = DecodeParams {
-                    motion,
-                    ..DecodeParams::default()
-                };
+            for (name, params) in decoders() {
                 let acc: MotionAccuracy = evaluate_motion(&rig, params, args.frames, 3)
                     .with_context(|| format!("amplitude {amplitude_mm} mm, {name}"))?;
-                let sway_label = if sway {
-                    format!("{SWAY_MM} mm, {ROLL_DEG}°")
-                } else {
-                    "none".into()
-                };
                 println!(
-                    "| {amplitude_mm} mm | {sway_label} | {name} | {} | {} | {} | {} | {} | {} |",
+                    "| {amplitude_mm} mm | {} | {name} | {} | {} | {} | {} | {} | {} |",
+                    sway_label(sway),
                     acc.moving.counted,
                     percent(acc.moving.coverage()),
                     percent(acc.moving.gross_rate()),
@@ -96,5 +89,105 @@ pub fn run(args: &SweepArgs) -> Result<()> {
             }
         }
     }
+    if args.tip_frames > 0 {
+        fingertip_table(args)?;
+    }
     Ok(())
+}
+
+/// The decoders the sweep compares.
+fn decoders() -> [(&'static str, DecodeParams); 2] {
+    [
+        ("still model", MotionParams::off()),
+        ("motion model", MotionParams::default()),
+    ]
+    .map(|(name, motion)| {
+        (
+            name,
+            DecodeParams {
+                motion,
+                ..DecodeParams::default()
+            },
+        )
+    })
+}
+
+fn sway_label(sway: bool) -> String {
+    if sway {
+        format!("{SWAY_MM} mm, {ROLL_DEG}°")
+    } else {
+        "none".into()
+    }
+}
+
+/// The fingertip trials: measured figures beside the truth at the same pixel.
+fn fingertip_table(args: &SweepArgs) -> Result<()> {
+    println!();
+    println!(
+        "Index fingertip's pixel, {} frames ({:.1} s), displacement along the optical axis;          truth: the skin seen along the pixel's ray",
+        args.tip_frames,
+        args.tip_frames as f64 / 121.0
+    );
+    println!();
+    println!(
+        "| peak amplitude | lateral sway | decoder | valid | peak Hz (truth) | peak-to-peak mm          (truth) | error | MDS-UPDRS bin (truth) |"
+    );
+    println!("|---:|---|---|---:|---:|---:|---:|---:|");
+    for sway in [false, true] {
+        for &amplitude_mm in &args.amplitudes_mm {
+            let rig = motion_rig(args.width, args.height, amplitude_mm, sway, args.seed)?;
+            for (name, params) in decoders() {
+                let tip = fingertip_tremor(&rig, params, args.tip_frames)
+                    .with_context(|| format!("fingertip, amplitude {amplitude_mm} mm, {name}"))?;
+                println!(
+                    "| {amplitude_mm} mm | {} | {name} | {} |",
+                    sway_label(sway),
+                    fingertip_cells(&tip)
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One row's figures: each measured figure with the truth's in brackets, or why it is missing.
+fn fingertip_cells(tip: &FingertipTremor) -> String {
+    let hz = |r: &TremorReport| {
+        r.peak_frequency_hz
+            .map_or("none".into(), |f| format!("{f:.3}"))
+    };
+    let truth = |f: &dyn Fn(&TremorReport) -> String| {
+        tip.truth
+            .as_ref()
+            .map_or_else(|_| "no truth".to_string(), |t| f(t))
+    };
+    match &tip.measured {
+        Ok(m) => format!(
+            "{:.1} % | {} ({}) | {:.2} ({}) | {} | {} ({})",
+            100.0 * m.valid_fraction,
+            hz(m),
+            truth(&hz),
+            m.amplitude_peak_to_peak_mm,
+            truth(&|t| format!("{:.2}", t.amplitude_peak_to_peak_mm)),
+            tip.peak_to_peak_error()
+                .map_or("–".into(), |e| format!("{:+.1} %", 100.0 * e)),
+            m.updrs_amplitude_bin,
+            truth(&|t| t.updrs_amplitude_bin.to_string()),
+        ),
+        Err(e) => format!(
+            "{} | – ({}) | – ({}) | – | – ({})",
+            missing(e),
+            truth(&hz),
+            truth(&|t| format!("{:.2}", t.amplitude_peak_to_peak_mm)),
+            truth(&|t| t.updrs_amplitude_bin.to_string()),
+        ),
+    }
+}
+
+/// Why a figure is missing, short enough for a table cell.
+fn missing(e: &TremorError) -> String {
+    match e {
+        TremorError::TooFewValid { why } => format!("figures missing: {why}"),
+        other => other.to_string(),
+    }
 }
