@@ -97,7 +97,9 @@ fn frames_that_break_the_chebyshev_relation_are_marked() {
     // a bias of only 0.05 rad between frequencies, common to a whole region, moves the coarse
     // coordinate by half a period: averaging cannot remove a shared bias, and the resulting
     // fringe-order error moves the three maps apart by under 1 px, within the χ² test on dark
-    // red. This is the limit of what CPS can check on its own: measured 0.14 % of the image.
+    // red. This is the limit of what CPS can check on its own: measured 0.14 % of the image with
+    // the still window, 0.28 % with the motion model, which can take part of such a frame for a
+    // brightness change (decode/motion.rs, `MAX_BRIGHTNESS_STEP`).
     let wrong_order = (0..n)
         .filter(|&i| clean.coordinate_px[i].is_finite() && broken.coordinate_px[i].is_finite())
         .filter(|&i| (clean.coordinate_px[i] - broken.coordinate_px[i]).abs() > 14.0)

@@ -76,9 +76,13 @@ pub const MAX_TURN_RAD: f32 = 1.0;
 /// Smallest `det(M + κN)` accepted: below it the correction amplifies the noise by more than
 /// 2.5×.
 const MIN_DET: f32 = 0.4;
-/// Largest brightness change the model accepts, per frame interval of the window (a pixel whose
-/// light halves or doubles from one frame to the next is not a surface the model describes).
-const MAX_BRIGHTNESS_STEP: f32 = 0.5;
+/// Largest brightness change the model accepts, per frame interval of the window. The swaying
+/// rig's finger sides change by up to about a third; data that no motion made can also look
+/// like a large brightness change (a frame with one channel a quarter period off fits κ of
+/// 40–50/s, about 0.4 per frame). At 0.5 that frame left 3,638 wrong fringe orders in a 640×400
+/// window, at 0.3 712 (the still window: about 360); the moving skin of the sweep lost 0.2
+/// points of coverage with sway and none without.
+const MAX_BRIGHTNESS_STEP: f32 = 0.3;
 /// χ² (two degrees of freedom) of a patch's `(u, κ)` against rest above which the motion is
 /// taken as real: exceeded by chance with probability 10⁻⁶. At 10⁻⁴ (18.4) a still hand at
 /// σ = 2 kept 55 pixels with motion and 12 wrong fringe orders; at 10⁻⁶ none, for 0.1 % of the

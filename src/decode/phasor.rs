@@ -310,7 +310,14 @@ fn derive_chebyshev3(
     let [am0, am1, am2] = three_planes(row.amp, stride, w);
     let (re, im) = (&mut row.re[..w], &mut row.im[..w]);
     let (support, flags) = (&mut row.support[..w], &mut row.flags[..w]);
-    let [co0, co1, co2] = three_planes(row.colour, stride, w);
+    // The offsets feed the motion model's brightness term. Only a colour window has the model
+    // (a CPS-gray window of three frequencies has one colour plane and none).
+    let motion_model = match motion_basis {
+        Some(basis) if row.colour.len() >= 2 * stride + w => {
+            Some((basis, three_planes(row.colour, stride, w)))
+        }
+        _ => None,
+    };
     let [mue, mke, mcount] = row.motion;
     let (mue, mke, mcount) = (&mut mue[..w], &mut mke[..w], &mut mcount[..w]);
     let saturated = &saturated[..w];
@@ -332,7 +339,7 @@ fn derive_chebyshev3(
         let min_amp = c.amplitude[0].min(c.amplitude[1]).min(c.amplitude[2]);
         let low = min_amp.is_nan() | (min_amp < min_amplitude);
         let signal = bit(low, invalid::LOW_AMPLITUDE) + bit(saturated[x] > 0.0, invalid::SATURATED);
-        match motion_basis {
+        match &motion_model {
             // The still model: the Chebyshev residual φ0 − 2φ1 + φ2 must vanish up to noise
             // (motion inside the window and mixed pixels break it).
             None => {
@@ -346,7 +353,7 @@ fn derive_chebyshev3(
             // The motion model: the residual is the velocity's evidence, weighted by its
             // inverse variance, for stage 2 to sum over the patch; it is tested after the
             // correction.
-            Some(basis) => {
+            Some((basis, [co0, co1, co2])) => {
                 let keep = if signal == 0.0 { 1.0 } else { 0.0 };
                 let offsets = [co0[x], co1[x], co2[x]];
                 let ev = motion::evidence(basis, z, &c, offsets, keep);

@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use tremorscan::color::CrossTalk;
+use tremorscan::decode::{DecodeParams, MotionParams};
 use tremorscan::device::{Camera, Pacing, ReplayCamera, VirtualCamera};
 use tremorscan::pattern::PatternSequence;
 use tremorscan::pipeline::{DecodePolicy, Pipeline, PipelineConfig, PipelineEvent};
@@ -106,6 +107,31 @@ pub struct ReplayArgs {
     /// Where the decode runs: `auto` takes a hardware GPU when there is one.
     #[arg(long, value_enum, default_value_t = DecoderChoice::Auto)]
     pub decoder: DecoderChoice,
+    #[arg(long, value_enum, default_value_t = MotionChoice::Linear)]
+    pub motion: MotionChoice,
+}
+
+/// The motion model inside the window (`--motion`).
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MotionChoice {
+    /// One velocity and brightness change per patch, corrected inside the window (CPU only).
+    Linear,
+    /// The paper's still window (what the GPU decoder does).
+    Off,
+}
+
+impl MotionChoice {
+    /// The decode parameters with this motion model.
+    pub fn decode_params(self) -> DecodeParams {
+        let motion = match self {
+            MotionChoice::Linear => MotionParams::default(),
+            MotionChoice::Off => MotionParams::off(),
+        };
+        DecodeParams {
+            motion,
+            ..DecodeParams::default()
+        }
+    }
 }
 
 pub fn run_replay(args: &ReplayArgs) -> Result<()> {
@@ -141,6 +167,7 @@ pub fn run_replay(args: &ReplayArgs) -> Result<()> {
             1
         },
         display: false,
+        decode_params: args.motion.decode_params(),
         ..PipelineConfig::default()
     };
     let camera = ReplayCamera::new(session, pacing);
@@ -192,6 +219,8 @@ pub struct RecordArgs {
     /// Where the decode runs: `auto` takes a hardware GPU when there is one.
     #[arg(long, value_enum, default_value_t = DecoderChoice::Auto)]
     pub decoder: DecoderChoice,
+    #[arg(long, value_enum, default_value_t = MotionChoice::Linear)]
+    pub motion: MotionChoice,
 }
 
 pub fn run_record(args: &RecordArgs) -> Result<()> {
@@ -216,6 +245,7 @@ pub fn run_record(args: &RecordArgs) -> Result<()> {
         stereo,
         PipelineConfig {
             display: false,
+            decode_params: args.motion.decode_params(),
             ..PipelineConfig::default()
         },
     )?;

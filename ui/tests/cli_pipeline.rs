@@ -57,6 +57,10 @@ fn record_interrupt_then_replay() {
         if let Some(d) = decoder {
             args.extend(["--decoder", d]);
         }
+        // The GPU decodes the paper's still window only, and says so unless asked for it.
+        if decoder == Some("gpu") {
+            args.extend(["--motion", "off"]);
+        }
         let out = Command::new(env!("CARGO_BIN_EXE_tremorscan"))
             .args(&args)
             .output()
@@ -85,5 +89,16 @@ fn record_interrupt_then_replay() {
             );
         }
     }
+    // Asked for the GPU with the motion model (the default), the replay says what to do.
+    let out = Command::new(env!("CARGO_BIN_EXE_tremorscan"))
+        .args(["replay", dir.to_str().unwrap(), "--decoder", "gpu"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("no motion model") && stderr.contains("--motion off"),
+        "{stderr}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

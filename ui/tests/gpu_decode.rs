@@ -167,10 +167,13 @@ fn a_pipeline_runs_on_the_gpu_backend() {
     let dir = common::scratch("gpu-pipeline");
     write_session(&dir, rig.session_manifest(), &frames(&rig, 0, 9)).unwrap();
     let session = Session::open(&dir).unwrap();
+    // The GPU decodes the still window; a pipeline asking it for the motion model would have
+    // each window refused and decoded on the CPU instead (`the_gpu_refuses_what_it_cannot_decode`).
     let config = PipelineConfig {
         decode_policy: DecodePolicy::Lossless,
         consumer_queue: 16,
         display: false,
+        decode_params: still(),
         ..PipelineConfig::default()
     };
     let camera = ReplayCamera::new(session.clone(), Pacing::AsFastAsPossible);

@@ -91,7 +91,7 @@ pub(super) fn unsupported(
     if params.motion.model != tremorscan::decode::MotionModel::Off {
         return Some(
             "the GPU decoder has no motion model yet: it decodes the still window only (decode \
-             on the CPU, or turn the motion model off)"
+             on the CPU, or ask for the still window: `--motion off`)"
                 .into(),
         );
     }
