@@ -159,7 +159,7 @@ fn fingertip_cells(tip: &FingertipTremor) -> String {
     let truth = |f: &dyn Fn(&TremorReport) -> String| {
         tip.truth
             .as_ref()
-            .map_or_else(|_| "no truth".to_string(), |t| f(t))
+            .map_or_else(|_| "no truth".to_string(), f)
     };
     match &tip.measured {
         Ok(m) => format!(
