@@ -263,16 +263,18 @@ impl MotionBasis {
     /// The derivatives of the still solution at rest: `(f·M'(0)·z, N(0)·z + lit·v)`.
     #[inline(always)]
     fn slopes_at_rest(&self, z: [(f32, f32); 3], lit: [f32; 3]) -> [[(f32, f32); 2]; 3] {
-        std::array::from_fn(|slot| {
+        let mut out = [[(0.0, 0.0); 2]; 3];
+        for slot in 0..3 {
             let zs = z[slot];
             let (gx, gy) = apply(&self.dm, zs);
             let (nx, ny) = apply(&self.n0, zs);
             let f = self.f_rad_per_px[slot];
-            [
+            out[slot] = [
                 (f * gx, f * gy),
                 (nx + lit[slot] * self.v.0, ny + lit[slot] * self.v.1),
-            ]
-        })
+            ];
+        }
+        out
     }
 }
 
@@ -563,27 +565,41 @@ fn split3(row: &mut [f32], w: usize) -> [&mut [f32]; 3] {
     "x86_64+sse4.1"
 ))]
 fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
+    // The step's kind and whether it is the last are fixed for the row: each combination is
+    // compiled as its own loop, without branches on them per pixel.
+    match (step.kind == StepKind::Refine, step.last) {
+        (false, false) => correct_row_as::<false, false>(step, row),
+        (false, true) => correct_row_as::<false, true>(step, row),
+        (true, false) => correct_row_as::<true, false>(step, row),
+        (true, true) => correct_row_as::<true, true>(step, row),
+    }
+}
+
+/// [`correct_row`] for a step that refines (`REFINE`, else from rest) and is the last (`LAST`).
+#[inline(always)]
+fn correct_row_as<const REFINE: bool, const LAST: bool>(step: &Step<'_>, row: RowPlanes<'_>) {
     let basis = step.basis;
     let w = row.flags.len();
     let [ph0, ph1, ph2] = split3(row.phase, w);
     let [am0, am1, am2] = split3(row.amp, w);
     let [co0, co1, co2] = split3(row.colour, w);
+    // Every plane cut to the row's width up front, so that indexing by `x` needs no checks.
+    let (uu, uk, kk) = (&mut row.uu[..w], &mut row.uk[..w], &mut row.kk[..w]);
+    let (ue, ke, count) = (&mut row.ue[..w], &mut row.ke[..w], &mut row.count[..w]);
+    let (flags, velocity) = (&mut row.flags[..w], &mut row.velocity[..w]);
+    let brightness = &mut row.brightness[..w];
     let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
     let kappa_max = basis.max_brightness_rate;
     for x in 0..w {
         // The patch's step: the ridge-regularised weighted least squares of e = D_u·u + D_κ·κ.
-        let (a, b, c) = (
-            row.uu[x] + step.prior_u,
-            row.uk[x],
-            row.kk[x] + step.prior_k,
-        );
+        let (a, b, c) = (uu[x] + step.prior_u, uk[x], kk[x] + step.prior_k);
         let det = a * c - b * b;
-        let (ru, rk) = (row.ue[x], row.ke[x]);
-        let solvable = (det > 0.0) & (row.count[x] > 0.0);
-        let (u0, k0) = if step.kind == StepKind::FromRest {
-            (0.0, 0.0)
+        let (ru, rk) = (ue[x], ke[x]);
+        let solvable = (det > 0.0) & (count[x] > 0.0);
+        let (u0, k0) = if REFINE {
+            (velocity[x], brightness[x])
         } else {
-            (row.velocity[x], row.brightness[x])
+            (0.0, 0.0)
         };
         // The evidence is absolute: its solution is the patch's (u, κ), not a step.
         let (u_new, k_new) = if solvable {
@@ -599,29 +615,6 @@ fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
         let amps = [am0[x], am1[x], am2[x]];
         let offsets = [co0[x], co1[x], co2[x]];
         let lit = basis.lit_offsets(offsets);
-        let mut within = bright_ok;
-        let mut worst_det = f32::INFINITY;
-        let (vx, vy) = basis.v;
-        let mut dz = [[(0.0, 0.0); 2]; 3];
-        let mut still = [(0.0, 0.0); 3];
-        let z: [(f32, f32); 3] = std::array::from_fn(|slot| {
-            let (s, c) = sin_cos_phase(phases[slot]);
-            let mut seen = (amps[slot] * c, amps[slot] * s);
-            let f = basis.f_rad_per_px[slot];
-            if step.kind == StepKind::Refine {
-                // What the still solve saw: the previous correction undone.
-                let (x, y) = apply(&basis.response(f * u0, k0).0, seen);
-                seen = (x + k0 * lit[slot] * vx, y + k0 * lit[slot] * vy);
-            }
-            still[slot] = seen;
-            let model = basis.linearised(f * u, kappa);
-            within &= model.within;
-            worst_det = worst_det.min(model.det);
-            let lit_term = (kappa * lit[slot] * vx, kappa * lit[slot] * vy);
-            let z = apply(&model.inverse, (seen.0 - lit_term.0, seen.1 - lit_term.1));
-            dz[slot] = model.slopes(z, f, lit[slot], basis.v);
-            z
-        });
         // At every step the motion stays only where the patch's evidence shows it: its (u, κ)
         // differ from rest by more than the noise (a χ² of the estimate with two degrees of
         // freedom above `MOTION_SIGNIFICANCE`). Elsewhere (still surfaces, and the ends of the
@@ -632,11 +625,40 @@ fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
         let significance = (a * u * u + 2.0 * b * u * kappa + c * kappa * kappa) * step.inv_noise2;
         let moving = significance > MOTION_SIGNIFICANCE;
         let (u, kappa) = if moving { (u, kappa) } else { (0.0, 0.0) };
-        let z = if moving { z } else { still };
-        let within = within | !moving;
-        let worst_det = if moving { worst_det } else { 1.0 };
-        row.velocity[x] = u;
-        row.brightness[x] = kappa;
+        // The previous step's correction, if it made one, is undone; the model is applied only
+        // where the patch moves (most of a scene is still, and skips both).
+        let corrected_before = REFINE & ((u0 != 0.0) | (k0 != 0.0));
+        let mut within = bright_ok | !moving;
+        let mut worst_det = if moving { f32::INFINITY } else { 1.0 };
+        let (vx, vy) = basis.v;
+        let mut dz = [[(0.0, 0.0); 2]; 3];
+        let mut still = [(0.0, 0.0); 3];
+        // Plain loops over the three slots (not `array::from_fn`, whose closure LLVM left out
+        // of line: 60 % of the window's time went into calling it).
+        let mut z = [(0.0, 0.0); 3];
+        for slot in 0..3 {
+            let (s, c) = sin_cos_phase(phases[slot]);
+            let mut seen = (amps[slot] * c, amps[slot] * s);
+            let f = basis.f_rad_per_px[slot];
+            if corrected_before {
+                // What the still solve saw: the previous correction undone.
+                let (x, y) = apply(&basis.response(f * u0, k0).0, seen);
+                seen = (x + k0 * lit[slot] * vx, y + k0 * lit[slot] * vy);
+            }
+            still[slot] = seen;
+            z[slot] = seen;
+            if moving {
+                let model = basis.linearised(f * u, kappa);
+                within &= model.within;
+                worst_det = worst_det.min(model.det);
+                let lit_term = (kappa * lit[slot] * vx, kappa * lit[slot] * vy);
+                let zs = apply(&model.inverse, (seen.0 - lit_term.0, seen.1 - lit_term.1));
+                dz[slot] = model.slopes(zs, f, lit[slot], basis.v);
+                z[slot] = zs;
+            }
+        }
+        velocity[x] = u;
+        brightness[x] = kappa;
         let cheb = chebyshev3(z, step.gain2);
         ph0[x] = cheb.phase[0];
         ph1[x] = cheb.phase[1];
@@ -644,26 +666,27 @@ fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
         am0[x] = cheb.amplitude[0];
         am1[x] = cheb.amplitude[1];
         am2[x] = cheb.amplitude[2];
-        if !step.last {
+        if !LAST {
             // The next step's evidence, from the corrected phasors. The flags still hold stage
             // 1's signal reasons alone.
-            let keep = if row.flags[x] == 0 { 1.0 } else { 0.0 };
+            let keep = if flags[x] == 0 { 1.0 } else { 0.0 };
             let dz = if moving {
                 dz
             } else {
                 basis.slopes_at_rest(still, lit)
             };
             let ev = evidence_with(z, dz, &cheb, keep, (u, kappa));
-            row.uu[x] = ev.uu;
-            row.uk[x] = ev.uk;
-            row.kk[x] = ev.kk;
-            row.ue[x] = ev.ue;
-            row.ke[x] = ev.ke;
-            row.count[x] = keep;
+            uu[x] = ev.uu;
+            uk[x] = ev.uk;
+            kk[x] = ev.kk;
+            ue[x] = ev.ue;
+            ke[x] = ev.ke;
+            count[x] = keep;
             continue;
         }
         // The offset image without the fringe that the motion leaked into it.
-        let leak: [f32; 3] = std::array::from_fn(|slot| {
+        let mut leak = [0.0; 3];
+        for slot in (0..3).filter(|_| moving) {
             let g = basis.f_rad_per_px[slot] * u;
             let mut r = 0.0;
             for k in 0..3 {
@@ -677,8 +700,8 @@ fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
                 r += basis.offset_row[k]
                     * (scale * cross_dot(turned, z[slot]) - cross_dot(basis.d[k], z[slot]));
             }
-            r
-        });
+            leak[slot] = r;
+        }
         co0[x] = offsets[0] - dot3(basis.mix_of_slot_row(0), leak);
         co1[x] = offsets[1] - dot3(basis.mix_of_slot_row(1), leak);
         co2[x] = offsets[2] - dot3(basis.mix_of_slot_row(2), leak);
@@ -687,19 +710,19 @@ fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
             .min(cheb.amplitude[2]);
         let low = min_amp.is_nan() | (min_amp < step.min_amplitude);
         let unexplained = !within | (worst_det < MIN_DET);
-        let saturated = row.flags[x] & invalid::SATURATED != 0;
+        let saturated = flags[x] & invalid::SATURATED != 0;
         let reason = bit(low, invalid::LOW_AMPLITUDE)
             + bit(saturated, invalid::SATURATED)
             + bit(inconsistent(&cheb, step.limit), invalid::DISAGREEMENT)
             + bit(unexplained, invalid::MOTION);
         let keep = if reason == 0.0 { 1.0 } else { 0.0 };
         // Only a valid pixel's motion is carried on to the next window.
-        row.velocity[x] = u * keep;
-        row.brightness[x] = kappa * keep;
-        row.kk[x] = keep;
-        row.uu[x] = cheb.unit.0 * keep;
-        row.uk[x] = cheb.unit.1 * keep;
-        row.flags[x] = whole_to_byte(reason);
+        velocity[x] = u * keep;
+        brightness[x] = kappa * keep;
+        kk[x] = keep;
+        uu[x] = cheb.unit.0 * keep;
+        uk[x] = cheb.unit.1 * keep;
+        flags[x] = whole_to_byte(reason);
     }
 }
 
