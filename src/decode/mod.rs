@@ -26,6 +26,7 @@ mod connect;
 mod consistency;
 pub mod fastmath;
 pub mod motion;
+mod motion_basis;
 pub mod motion_noise;
 pub mod phasor;
 pub mod reference;

@@ -65,24 +65,15 @@
 //! as before.
 
 use super::fastmath::{atan2, phase_0_tau, sin_cos_phase, sin_cos_small, whole_to_byte};
+use super::motion_basis::apply;
+pub use super::motion_basis::{MotionBasis, MAX_TURN_RAD};
 use super::smooth::{smooth_planes, Planes};
 use super::{invalid, DecodeOutput, DecodeParams, WindowSolver};
 use rayon::prelude::*;
 
-/// Largest phase turn of one frame against the window's centre that the model corrects, rad.
-/// At 2π/3 the three-step window cannot see the fringe at all (`M` is singular); a turn of 1
-/// rad keeps `det M ≥ 0.4`.
-pub const MAX_TURN_RAD: f32 = 1.0;
 /// Smallest `det(M + κN)` accepted: below it the correction amplifies the noise by more than
 /// 2.5×.
 const MIN_DET: f32 = 0.4;
-/// Largest brightness change the model accepts, per frame interval of the window. The swaying
-/// rig's finger sides change by up to about a third; data that no motion made can also look
-/// like a large brightness change (a frame with one channel a quarter period off fits κ of
-/// 40–50/s, about 0.4 per frame). At 0.5 that frame left 3,638 wrong fringe orders in a 640×400
-/// window, at 0.3 712 (the still window: about 360); the moving skin of the sweep lost 0.2
-/// points of coverage with sway and none without.
-const MAX_BRIGHTNESS_STEP: f32 = 0.3;
 /// χ² (two degrees of freedom) of a patch's `(u, κ)` against rest above which the motion is
 /// taken as real: exceeded by chance with probability 10⁻⁶. At 10⁻⁴ (18.4) a still hand at
 /// σ = 2 kept 55 pixels with motion and 12 wrong fringe orders; at 10⁻⁶ none, for 0.1 % of the
@@ -95,213 +86,6 @@ const MOTION_SIGNIFICANCE: f32 = 27.6;
 /// near rest instead of fitting its noise.
 const PRIOR_VELOCITY_PX_PER_S: f32 = 400.0;
 const PRIOR_BRIGHTNESS_RATE_PER_S: f32 = 20.0;
-
-/// A 2×2 matrix, row-major.
-type M2 = [f32; 4];
-
-#[inline(always)]
-fn apply(m: &M2, (x, y): (f32, f32)) -> (f32, f32) {
-    (m[0] * x + m[1] * y, m[2] * x + m[3] * y)
-}
-
-#[inline(always)]
-fn cross((ax, ay): (f32, f32), (bx, by): (f32, f32)) -> f32 {
-    ax * by - ay * bx
-}
-
-/// The window's motion model: the still solve's response to a turning, brightening phasor.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MotionBasis {
-    /// `P_k = L_k·d_kᵀ` per frame.
-    p: [M2; 3],
-    /// `Q_k = P_k·J` per frame.
-    q: [M2; 3],
-    /// Frame time minus the window's centre time, s.
-    tau_s: [f32; 3],
-    /// `M'(0) = Σ_k τ_k·Q_k`.
-    dm: M2,
-    /// `N(0) = Σ_k τ_k·P_k`.
-    n0: M2,
-    /// `v = Σ_k τ_k·L_k`.
-    v: (f32, f32),
-    /// The offset row of the closed form, `O_k`, and each frame's `d_k`.
-    offset_row: [f32; 3],
-    d: [(f32, f32); 3],
-    /// Frequency of each slot, rad per projector px.
-    f_rad_per_px: [f32; 3],
-    /// Row of `A⁻¹` giving each slot's projector channel, column of `A` it mixes in with.
-    unmix_of_slot: [[f32; 3]; 3],
-    mix_of_slot: [[f32; 3]; 3],
-    bias_gray: [f32; 3],
-    /// The largest |κ| accepted, per second.
-    max_brightness_rate: f32,
-    /// The largest |u| whose turns stay within [`MAX_TURN_RAD`] at every frequency, px/s.
-    max_velocity: f32,
-}
-
-impl MotionBasis {
-    /// The basis of a CPS-RGB window (`None` for other windows) whose frames were taken at
-    /// `frame_times_s`, oldest first.
-    pub fn new(solver: &WindowSolver, frame_times_s: [f64; 3]) -> Option<Self> {
-        let factored = solver.factored.as_ref()?;
-        if solver.frequency_rad_per_px.len() != 3 {
-            return None;
-        }
-        let centre_s = frame_times_s.iter().sum::<f64>() / 3.0;
-        let [offset_row, cos_row, sin_row] = factored.closed_form;
-        let d: [(f32, f32); 3] = factored.shift_rad.map(|s| (s.cos(), -s.sin()));
-        let p: [M2; 3] = std::array::from_fn(|k| {
-            let (l0, l1) = (cos_row[k], sin_row[k]);
-            let (d0, d1) = d[k];
-            [l0 * d0, l0 * d1, l1 * d0, l1 * d1]
-        });
-        let q: [M2; 3] = p.map(|m| [m[1], -m[0], m[3], -m[2]]);
-        let tau_s: [f32; 3] = std::array::from_fn(|k| (frame_times_s[k] - centre_s) as f32);
-        let (mut dm, mut n0, mut v) = ([0.0; 4], [0.0; 4], (0.0, 0.0));
-        for k in 0..3 {
-            for i in 0..4 {
-                dm[i] += tau_s[k] * q[k][i];
-                n0[i] += tau_s[k] * p[k][i];
-            }
-            v.0 += tau_s[k] * cos_row[k];
-            v.1 += tau_s[k] * sin_row[k];
-        }
-        let span_s = tau_s.iter().fold(0f32, |m, t| m.max(t.abs()));
-        if !(span_s.is_finite() && span_s > 0.0) {
-            return None;
-        }
-        let f = &solver.frequency_rad_per_px;
-        let ch = factored.channel_of_slot;
-        Some(Self {
-            p,
-            q,
-            tau_s,
-            dm,
-            n0,
-            v,
-            offset_row,
-            d,
-            f_rad_per_px: [f[0], f[1], f[2]],
-            unmix_of_slot: ch.map(|c| factored.unmix[c]),
-            mix_of_slot: ch.map(|c| [0, 1, 2].map(|j| factored.mix[j][c])),
-            bias_gray: factored.bias_gray,
-            max_brightness_rate: MAX_BRIGHTNESS_STEP / span_s,
-            max_velocity: MAX_TURN_RAD / (f[0].max(f[1]).max(f[2]) * span_s),
-        })
-    }
-
-    /// `M(g) + κ·N(g)` and whether every frame's turn `g·τ_k` is within [`MAX_TURN_RAD`].
-    #[inline(always)]
-    fn response(&self, g: f32, kappa: f32) -> (M2, bool) {
-        let mut m = [0.0; 4];
-        let mut within = true;
-        for k in 0..3 {
-            let turn = g * self.tau_s[k];
-            within &= turn.abs() <= MAX_TURN_RAD;
-            let (s, c) = sin_cos_small(turn.clamp(-MAX_TURN_RAD, MAX_TURN_RAD));
-            let scale = 1.0 + kappa * self.tau_s[k];
-            let (cs, ss) = (c * scale, s * scale);
-            for i in 0..4 {
-                m[i] += cs * self.p[k][i] + ss * self.q[k][i];
-            }
-        }
-        (m, within)
-    }
-
-    /// `B = M(g) + κ·N(g)`, `∂B/∂g` and `N(g)`, and whether every turn is within
-    /// [`MAX_TURN_RAD`]: the model and its derivatives at `(g, κ)`.
-    #[inline(always)]
-    fn linearised(&self, g: f32, kappa: f32) -> Linearised {
-        let (mut b, mut db, mut n) = ([0.0; 4], [0.0; 4], [0.0; 4]);
-        let mut within = true;
-        for k in 0..3 {
-            let tau = self.tau_s[k];
-            let turn = g * tau;
-            within &= turn.abs() <= MAX_TURN_RAD;
-            let (s, c) = sin_cos_small(turn.clamp(-MAX_TURN_RAD, MAX_TURN_RAD));
-            let scale = 1.0 + kappa * tau;
-            for i in 0..4 {
-                let rotated = c * self.p[k][i] + s * self.q[k][i];
-                b[i] += scale * rotated;
-                n[i] += tau * rotated;
-                db[i] += scale * tau * (c * self.q[k][i] - s * self.p[k][i]);
-            }
-        }
-        let det = b[0] * b[3] - b[1] * b[2];
-        let inverse = [b[3] / det, -b[1] / det, -b[2] / det, b[0] / det];
-        Linearised {
-            inverse,
-            db,
-            n,
-            det,
-            within,
-        }
-    }
-
-    /// The projector-lit offset of each slot: the camera offsets less the bias, unmixed.
-    #[inline(always)]
-    fn lit_offsets(&self, offsets: [f32; 3]) -> [f32; 3] {
-        let lit = [0, 1, 2].map(|j| offsets[j] - self.bias_gray[j]);
-        self.unmix_of_slot
-            .map(|r| r[0] * lit[0] + r[1] * lit[1] + r[2] * lit[2])
-    }
-
-    /// The slopes `(D_u, D_κ)` of the Chebyshev residual at phasors `z` whose derivatives
-    /// with respect to `u` and `κ` are `dz`.
-    #[inline(always)]
-    fn residual_slopes(z: [(f32, f32); 3], dz: [[(f32, f32); 2]; 3]) -> (f32, f32) {
-        let (mut du, mut dk) = (0.0, 0.0);
-        for (slot, weight) in [(0, 1.0), (1, -2.0), (2, 1.0)] {
-            let zs = z[slot];
-            let inv = 1.0 / (zs.0 * zs.0 + zs.1 * zs.1);
-            du += weight * cross(zs, dz[slot][0]) * inv;
-            dk += weight * cross(zs, dz[slot][1]) * inv;
-        }
-        (du, dk)
-    }
-
-    /// The derivatives of the still solution at rest: `(f·M'(0)·z, N(0)·z + lit·v)`.
-    #[inline(always)]
-    fn slopes_at_rest(&self, z: [(f32, f32); 3], lit: [f32; 3]) -> [[(f32, f32); 2]; 3] {
-        let mut out = [[(0.0, 0.0); 2]; 3];
-        for slot in 0..3 {
-            let zs = z[slot];
-            let (gx, gy) = apply(&self.dm, zs);
-            let (nx, ny) = apply(&self.n0, zs);
-            let f = self.f_rad_per_px[slot];
-            out[slot] = [
-                (f * gx, f * gy),
-                (nx + lit[slot] * self.v.0, ny + lit[slot] * self.v.1),
-            ];
-        }
-        out
-    }
-}
-
-/// The model at one slot's `(g, κ)`: `B⁻¹`, `∂B/∂g`, `N(g)`, `det B`, and whether the turns
-/// are within range.
-#[derive(Clone, Copy)]
-struct Linearised {
-    inverse: M2,
-    db: M2,
-    n: M2,
-    det: f32,
-    within: bool,
-}
-
-impl Linearised {
-    /// How the corrected phasor `z` of a slot with frequency `f` and lit offset `lit` moves as
-    /// the true `u` and `κ` depart from the estimate: `(B⁻¹·f·∂B/∂g·z, B⁻¹·(N·z + lit·v))`.
-    #[inline(always)]
-    fn slopes(&self, z: (f32, f32), f: f32, lit: f32, v: (f32, f32)) -> [(f32, f32); 2] {
-        let (gx, gy) = apply(&self.db, z);
-        let (nx, ny) = apply(&self.n, z);
-        [
-            apply(&self.inverse, (f * gx, f * gy)),
-            apply(&self.inverse, (nx + lit * v.0, ny + lit * v.1)),
-        ]
-    }
-}
 
 /// The per-pixel Chebyshev quantities of three phasors (slots 0, 1, 2 = frequencies n, n−1,
 /// n−2), shared by stage 1 and the motion correction.
@@ -625,16 +409,14 @@ fn correct_row_as<const REFINE: bool, const LAST: bool>(step: &Step<'_>, row: Ro
         let significance = (a * u * u + 2.0 * b * u * kappa + c * kappa * kappa) * step.inv_noise2;
         let moving = significance > MOTION_SIGNIFICANCE;
         let (u, kappa) = if moving { (u, kappa) } else { (0.0, 0.0) };
-        // The previous step's correction, if it made one, is undone; the model is applied only
-        // where the patch moves (most of a scene is still, and skips both).
+        // Undo the previous correction, if any; correct only where the patch moves.
         let corrected_before = REFINE & ((u0 != 0.0) | (k0 != 0.0));
         let mut within = bright_ok | !moving;
         let mut worst_det = if moving { f32::INFINITY } else { 1.0 };
         let (vx, vy) = basis.v;
         let mut dz = [[(0.0, 0.0); 2]; 3];
         let mut still = [(0.0, 0.0); 3];
-        // Plain loops over the three slots (not `array::from_fn`, whose closure LLVM left out
-        // of line: 60 % of the window's time went into calling it).
+        // A plain loop: an `array::from_fn` closure here stayed out of line (perf: 55 %).
         let mut z = [(0.0, 0.0); 3];
         for slot in 0..3 {
             let (s, c) = sin_cos_phase(phases[slot]);
@@ -735,19 +517,6 @@ fn cross_dot(a: (f32, f32), b: (f32, f32)) -> f32 {
 #[inline(always)]
 fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-impl MotionBasis {
-    /// Row `j` of `A` with its columns in slot order: how each slot's light reaches camera
-    /// channel `j`.
-    #[inline(always)]
-    fn mix_of_slot_row(&self, j: usize) -> [f32; 3] {
-        [
-            self.mix_of_slot[0][j],
-            self.mix_of_slot[1][j],
-            self.mix_of_slot[2][j],
-        ]
-    }
 }
 
 #[cfg(test)]

@@ -1,0 +1,244 @@
+//! The window's motion model: how the still three-step solve responds to a phasor that turns
+//! (the surface moves along the projector's coordinate) and brightens (its shading changes)
+//! within the window, and the model's derivatives, for the correction of [`super::motion`].
+//!
+//! For a window whose frames were taken at `τ_k` from its centre, with frame shifts `d_k` and
+//! the closed form's rows `L_k`, the still solve returns `(M(g) + κ·N(g))·z + κ·ō·v` for a
+//! phasor `z` turning at `g` rad/s and brightening at `κ` per second: `M(g) = Σ_k L_k·d_kᵀ·
+//! R(gτ_k)`, `N(g) = Σ_k τ_k·L_k·d_kᵀ·R(gτ_k)`, `v = Σ_k τ_k·L_k` (derivation in
+//! [`super::motion`]). [`MotionBasis`] holds the per-window constants, built once per window
+//! from its frame times; its methods evaluate the model and its slopes per pixel.
+
+use super::fastmath::sin_cos_small;
+use super::WindowSolver;
+
+/// Largest phase turn of one frame against the window's centre that the model corrects, rad.
+/// At 2π/3 the three-step window cannot see the fringe at all (`M` is singular); a turn of 1
+/// rad keeps `det M ≥ 0.4`.
+pub const MAX_TURN_RAD: f32 = 1.0;
+/// Largest brightness change the model accepts, per frame interval of the window. The swaying
+/// rig's finger sides change by up to about a third; data that no motion made can also look
+/// like a large brightness change (a frame with one channel a quarter period off fits κ of
+/// 40–50/s, about 0.4 per frame). At 0.5 that frame left 3,638 wrong fringe orders in a 640×400
+/// window, at 0.3 712 (the still window: about 360); the moving skin of the sweep lost 0.2
+/// points of coverage with sway and none without.
+const MAX_BRIGHTNESS_STEP: f32 = 0.3;
+/// A 2×2 matrix, row-major.
+pub(super) type M2 = [f32; 4];
+
+#[inline(always)]
+pub(super) fn apply(m: &M2, (x, y): (f32, f32)) -> (f32, f32) {
+    (m[0] * x + m[1] * y, m[2] * x + m[3] * y)
+}
+
+#[inline(always)]
+pub(super) fn cross((ax, ay): (f32, f32), (bx, by): (f32, f32)) -> f32 {
+    ax * by - ay * bx
+}
+
+/// The window's motion model: the still solve's response to a turning, brightening phasor.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MotionBasis {
+    /// `P_k = L_k·d_kᵀ` per frame.
+    pub(super) p: [M2; 3],
+    /// `Q_k = P_k·J` per frame.
+    pub(super) q: [M2; 3],
+    /// Frame time minus the window's centre time, s.
+    pub(super) tau_s: [f32; 3],
+    /// `M'(0) = Σ_k τ_k·Q_k`.
+    pub(super) dm: M2,
+    /// `N(0) = Σ_k τ_k·P_k`.
+    pub(super) n0: M2,
+    /// `v = Σ_k τ_k·L_k`.
+    pub(super) v: (f32, f32),
+    /// The offset row of the closed form, `O_k`, and each frame's `d_k`.
+    pub(super) offset_row: [f32; 3],
+    pub(super) d: [(f32, f32); 3],
+    /// Frequency of each slot, rad per projector px.
+    pub(super) f_rad_per_px: [f32; 3],
+    /// Row of `A⁻¹` giving each slot's projector channel, column of `A` it mixes in with.
+    pub(super) unmix_of_slot: [[f32; 3]; 3],
+    pub(super) mix_of_slot: [[f32; 3]; 3],
+    pub(super) bias_gray: [f32; 3],
+    /// The largest |κ| accepted, per second.
+    pub(super) max_brightness_rate: f32,
+    /// The largest |u| whose turns stay within [`MAX_TURN_RAD`] at every frequency, px/s.
+    pub(super) max_velocity: f32,
+}
+
+impl MotionBasis {
+    /// The basis of a CPS-RGB window (`None` for other windows) whose frames were taken at
+    /// `frame_times_s`, oldest first.
+    pub fn new(solver: &WindowSolver, frame_times_s: [f64; 3]) -> Option<Self> {
+        let factored = solver.factored.as_ref()?;
+        if solver.frequency_rad_per_px.len() != 3 {
+            return None;
+        }
+        let centre_s = frame_times_s.iter().sum::<f64>() / 3.0;
+        let [offset_row, cos_row, sin_row] = factored.closed_form;
+        let d: [(f32, f32); 3] = factored.shift_rad.map(|s| (s.cos(), -s.sin()));
+        let p: [M2; 3] = std::array::from_fn(|k| {
+            let (l0, l1) = (cos_row[k], sin_row[k]);
+            let (d0, d1) = d[k];
+            [l0 * d0, l0 * d1, l1 * d0, l1 * d1]
+        });
+        let q: [M2; 3] = p.map(|m| [m[1], -m[0], m[3], -m[2]]);
+        let tau_s: [f32; 3] = std::array::from_fn(|k| (frame_times_s[k] - centre_s) as f32);
+        let (mut dm, mut n0, mut v) = ([0.0; 4], [0.0; 4], (0.0, 0.0));
+        for k in 0..3 {
+            for i in 0..4 {
+                dm[i] += tau_s[k] * q[k][i];
+                n0[i] += tau_s[k] * p[k][i];
+            }
+            v.0 += tau_s[k] * cos_row[k];
+            v.1 += tau_s[k] * sin_row[k];
+        }
+        let span_s = tau_s.iter().fold(0f32, |m, t| m.max(t.abs()));
+        if !(span_s.is_finite() && span_s > 0.0) {
+            return None;
+        }
+        let f = &solver.frequency_rad_per_px;
+        let ch = factored.channel_of_slot;
+        Some(Self {
+            p,
+            q,
+            tau_s,
+            dm,
+            n0,
+            v,
+            offset_row,
+            d,
+            f_rad_per_px: [f[0], f[1], f[2]],
+            unmix_of_slot: ch.map(|c| factored.unmix[c]),
+            mix_of_slot: ch.map(|c| [0, 1, 2].map(|j| factored.mix[j][c])),
+            bias_gray: factored.bias_gray,
+            max_brightness_rate: MAX_BRIGHTNESS_STEP / span_s,
+            max_velocity: MAX_TURN_RAD / (f[0].max(f[1]).max(f[2]) * span_s),
+        })
+    }
+
+    /// `M(g) + κ·N(g)` and whether every frame's turn `g·τ_k` is within [`MAX_TURN_RAD`].
+    #[inline(always)]
+    pub(super) fn response(&self, g: f32, kappa: f32) -> (M2, bool) {
+        let mut m = [0.0; 4];
+        let mut within = true;
+        for k in 0..3 {
+            let turn = g * self.tau_s[k];
+            within &= turn.abs() <= MAX_TURN_RAD;
+            let (s, c) = sin_cos_small(turn.clamp(-MAX_TURN_RAD, MAX_TURN_RAD));
+            let scale = 1.0 + kappa * self.tau_s[k];
+            let (cs, ss) = (c * scale, s * scale);
+            for i in 0..4 {
+                m[i] += cs * self.p[k][i] + ss * self.q[k][i];
+            }
+        }
+        (m, within)
+    }
+
+    /// `B = M(g) + κ·N(g)`, `∂B/∂g` and `N(g)`, and whether every turn is within
+    /// [`MAX_TURN_RAD`]: the model and its derivatives at `(g, κ)`.
+    #[inline(always)]
+    pub(super) fn linearised(&self, g: f32, kappa: f32) -> Linearised {
+        let (mut b, mut db, mut n) = ([0.0; 4], [0.0; 4], [0.0; 4]);
+        let mut within = true;
+        for k in 0..3 {
+            let tau = self.tau_s[k];
+            let turn = g * tau;
+            within &= turn.abs() <= MAX_TURN_RAD;
+            let (s, c) = sin_cos_small(turn.clamp(-MAX_TURN_RAD, MAX_TURN_RAD));
+            let scale = 1.0 + kappa * tau;
+            for i in 0..4 {
+                let rotated = c * self.p[k][i] + s * self.q[k][i];
+                b[i] += scale * rotated;
+                n[i] += tau * rotated;
+                db[i] += scale * tau * (c * self.q[k][i] - s * self.p[k][i]);
+            }
+        }
+        let det = b[0] * b[3] - b[1] * b[2];
+        let inverse = [b[3] / det, -b[1] / det, -b[2] / det, b[0] / det];
+        Linearised {
+            inverse,
+            db,
+            n,
+            det,
+            within,
+        }
+    }
+
+    /// The projector-lit offset of each slot: the camera offsets less the bias, unmixed.
+    #[inline(always)]
+    pub(super) fn lit_offsets(&self, offsets: [f32; 3]) -> [f32; 3] {
+        let lit = [0, 1, 2].map(|j| offsets[j] - self.bias_gray[j]);
+        self.unmix_of_slot
+            .map(|r| r[0] * lit[0] + r[1] * lit[1] + r[2] * lit[2])
+    }
+
+    /// The slopes `(D_u, D_κ)` of the Chebyshev residual at phasors `z` whose derivatives
+    /// with respect to `u` and `κ` are `dz`.
+    #[inline(always)]
+    pub(super) fn residual_slopes(z: [(f32, f32); 3], dz: [[(f32, f32); 2]; 3]) -> (f32, f32) {
+        let (mut du, mut dk) = (0.0, 0.0);
+        for (slot, weight) in [(0, 1.0), (1, -2.0), (2, 1.0)] {
+            let zs = z[slot];
+            let inv = 1.0 / (zs.0 * zs.0 + zs.1 * zs.1);
+            du += weight * cross(zs, dz[slot][0]) * inv;
+            dk += weight * cross(zs, dz[slot][1]) * inv;
+        }
+        (du, dk)
+    }
+
+    /// The derivatives of the still solution at rest: `(f·M'(0)·z, N(0)·z + lit·v)`.
+    #[inline(always)]
+    pub(super) fn slopes_at_rest(&self, z: [(f32, f32); 3], lit: [f32; 3]) -> [[(f32, f32); 2]; 3] {
+        let mut out = [[(0.0, 0.0); 2]; 3];
+        for slot in 0..3 {
+            let zs = z[slot];
+            let (gx, gy) = apply(&self.dm, zs);
+            let (nx, ny) = apply(&self.n0, zs);
+            let f = self.f_rad_per_px[slot];
+            out[slot] = [
+                (f * gx, f * gy),
+                (nx + lit[slot] * self.v.0, ny + lit[slot] * self.v.1),
+            ];
+        }
+        out
+    }
+}
+
+/// The model at one slot's `(g, κ)`: `B⁻¹`, `∂B/∂g`, `N(g)`, `det B`, and whether the turns
+/// are within range.
+#[derive(Clone, Copy)]
+pub(super) struct Linearised {
+    pub(super) inverse: M2,
+    pub(super) db: M2,
+    pub(super) n: M2,
+    pub(super) det: f32,
+    pub(super) within: bool,
+}
+
+impl Linearised {
+    /// How the corrected phasor `z` of a slot with frequency `f` and lit offset `lit` moves as
+    /// the true `u` and `κ` depart from the estimate: `(B⁻¹·f·∂B/∂g·z, B⁻¹·(N·z + lit·v))`.
+    #[inline(always)]
+    pub(super) fn slopes(&self, z: (f32, f32), f: f32, lit: f32, v: (f32, f32)) -> [(f32, f32); 2] {
+        let (gx, gy) = apply(&self.db, z);
+        let (nx, ny) = apply(&self.n, z);
+        [
+            apply(&self.inverse, (f * gx, f * gy)),
+            apply(&self.inverse, (nx + lit * v.0, ny + lit * v.1)),
+        ]
+    }
+}
+
+impl MotionBasis {
+    /// Row `j` of `A` with its columns in slot order: how each slot's light reaches camera
+    /// channel `j`.
+    #[inline(always)]
+    pub(super) fn mix_of_slot_row(&self, j: usize) -> [f32; 3] {
+        [
+            self.mix_of_slot[0][j],
+            self.mix_of_slot[1][j],
+            self.mix_of_slot[2][j],
+        ]
+    }
+}
