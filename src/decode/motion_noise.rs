@@ -4,8 +4,8 @@
 //! The motion model keeps a patch's velocity only where it differs from rest by more than the
 //! noise ([`super::motion`]). That test is only as good as its noise level: told σ = 2 gray
 //! levels on a camera at σ = 4, it took noise for motion on a still hand and left 7,277 wrong
-//! fringe orders where the still window left a few hundred. The still window's checks
-//! are far less sensitive to the level, so an operator's setting that is too low went unnoticed.
+//! fringe orders in a 640×400 window (`tests/accuracy.rs`). The still window's checks are far
+//! less sensitive to the level, so an operator's setting that is too low went unnoticed.
 //!
 //! On a still pixel the Chebyshev residual `e = φ_0 − 2φ_1 + φ_2` is normal with variance
 //! `v·σ²`, `v` known from the amplitudes ([`super::motion::Chebyshev3::var_over_noise`]), so
