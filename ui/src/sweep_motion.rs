@@ -124,13 +124,15 @@ fn sway_label(sway: bool) -> String {
 fn fingertip_table(args: &SweepArgs) -> Result<()> {
     println!();
     println!(
-        "Index fingertip's pixel, {} frames ({:.1} s), displacement along the optical axis;          truth: the skin seen along the pixel's ray",
+        "Index fingertip's pixel, {} frames ({:.1} s), displacement along the optical axis; \
+         truth: the skin seen along the pixel's ray",
         args.tip_frames,
         args.tip_frames as f64 / 121.0
     );
     println!();
     println!(
-        "| peak amplitude | lateral sway | decoder | valid | peak Hz (truth) | peak-to-peak mm          (truth) | error | MDS-UPDRS bin (truth) |"
+        "| peak amplitude | lateral sway | decoder | valid | peak Hz (truth) | peak-to-peak mm \
+         (truth) | error | MDS-UPDRS bin (truth) |"
     );
     println!("|---:|---|---|---:|---:|---:|---:|---:|");
     for sway in [false, true] {
