@@ -80,8 +80,9 @@ fn the_motion_model_sees_no_motion_in_a_noisy_still_hand() {
     // The model keeps a velocity only where the evidence beats the noise, at the configured
     // level (2 gray levels) or the one the residuals show, whichever is higher. So a still hand
     // decodes exactly as the paper's still window does, also on a camera noisier than the
-    // setting: before the noise was measured, σ = 4 gave 7,277 wrong fringe orders, and
-    // σ = 2 gave 12 when the motion was tested only after the last step.
+    // setting: before the noise was measured, σ = 4 gave 7,277 wrong fringe orders; σ = 2 gave
+    // 0.56 % of the valid pixels when the motion was tested only after the last step, and 12
+    // pixels when tested at every step at the 10⁻⁴ level.
     for sigma in [2.0, 4.0] {
         let config = still_hand_rig(NoiseModel::gaussian(sigma));
         let seq = config.default_sequence().unwrap();
