@@ -43,12 +43,13 @@ fn a_ten_millimetre_tremor_keeps_its_fingertips() {
     let coverage = motion.moving.coverage().unwrap();
     let gross = motion.moving.gross_rate().unwrap();
     let rms = motion.moving.rms_mm().unwrap();
-    // Over these four windows: 95.8 %, 0.86 % and 0.185 mm (the still window 67.7 %, 17.7 %
+    // Over these four windows: 95.8 %, 0.86 % and 0.158 mm (the still window 67.7 %, 17.7 %
     // and 0.33 mm; the first motion model, which pooled Gauss–Newton steps over a narrower
-    // patch, 89.9 % and 1.9 %, failing both bounds). The sweep's 13 windows: docs/accuracy.md.
+    // patch, 89.9 % and 1.9 %, failing both bounds; before the acceleration was taken, an
+    // RMS of 0.185 mm, failing the 0.17). The sweep's 13 windows: docs/accuracy.md.
     assert!(coverage >= 0.93, "coverage {coverage}");
     assert!(gross <= 0.015, "gross {gross}");
-    assert!(rms <= 0.2, "RMS {rms}");
+    assert!(rms <= 0.17, "RMS {rms}");
     assert!(still.moving.coverage().unwrap() < 0.8);
     assert!(still.moving.gross_rate().unwrap() > 0.08);
     // Still skin keeps its accuracy: the still hand's RMS (0.08 mm) may not grow by 5 %.
@@ -124,4 +125,127 @@ fn a_fingertip_trembling_ten_millimetres_gets_the_clinical_figures() {
             && still.peak_to_peak_error().is_some_and(|d| d.abs() < 0.03)
     });
     assert!(!still_ok, "{:?}", still.measured);
+}
+
+/// The decoded coordinate against the truth at the window's centre, for moving skin in the
+/// windows ending at frames 5, 8 and 11 of a sliding decode (each with its previous window,
+/// which the acceleration needs): the errors, the shift the acceleration makes (the frames'
+/// mean coordinate less the centre's, `(x₀ − 2x₁ + x₂)/3`), the true and the decoded
+/// acceleration (px/s²).
+struct AccelerationSamples {
+    error_px: Vec<f64>,
+    shift_px: Vec<f64>,
+    true_px_per_s2: Vec<f64>,
+    decoded_px_per_s2: Vec<f64>,
+}
+
+fn acceleration_samples(rig: &VirtualRig, params: DecodeParams) -> AccelerationSamples {
+    use tremorscan::decode::{SlidingDecoder, WindowOutcome};
+    use tremorscan::rig::{truth::surface, GroundTruth};
+    let mut decoder =
+        SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params).unwrap();
+    let mut frame = rig.blank_frame();
+    let mut truths: [GroundTruth; 3] = Default::default();
+    let mut s = AccelerationSamples {
+        error_px: Vec::new(),
+        shift_px: Vec::new(),
+        true_px_per_s2: Vec::new(),
+        decoded_px_per_s2: Vec::new(),
+    };
+    for i in 0..12u64 {
+        truths.rotate_left(1);
+        rig.render(i, &mut frame, Some(&mut truths[2])).unwrap();
+        let WindowOutcome::Decoded(out) = decoder.push(&frame).unwrap() else {
+            continue;
+        };
+        if i < 5 || (i - 2) % 3 != 0 {
+            continue;
+        }
+        let interval_s = truths[1].time_s - truths[0].time_s;
+        for p in 0..out.coordinate_px.len() {
+            let c = [0, 1, 2].map(|k| f64::from(truths[k].coordinate_px[p]));
+            let d = [0, 1, 2].map(|k| truths[k].depth_mm[p]);
+            let on_skin = truths.iter().all(|t| t.surface[p] == surface::SKIN);
+            let moving = (d[0] - d[2]).abs() > 0.5 || (d[0] - d[1]).abs() > 0.5;
+            let decoded = f64::from(out.coordinate_px[p]);
+            let error = decoded - c[1];
+            if !(on_skin && moving && c.iter().all(|v| v.is_finite()) && error.abs() < 1.0) {
+                continue;
+            }
+            let second_difference = c[0] - 2.0 * c[1] + c[2];
+            s.error_px.push(error);
+            s.shift_px.push(second_difference / 3.0);
+            s.true_px_per_s2
+                .push(second_difference / (interval_s * interval_s));
+            s.decoded_px_per_s2
+                .push(f64::from(out.acceleration_px_per_s2[p]));
+        }
+    }
+    s
+}
+
+/// The least-squares slope of `y` on `x` through the origin.
+fn slope(x: &[f64], y: &[f64]) -> f64 {
+    let xy: f64 = x.iter().zip(y).map(|(a, b)| a * b).sum();
+    let xx: f64 = x.iter().map(|a| a * a).sum();
+    xy / xx
+}
+
+#[test]
+fn accelerating_skin_is_measured_at_the_window_centre_not_its_mean() {
+    // The three-step solve returns the frames' mean coordinate. Under a 10 mm tremor that is
+    // off the centre's by up to 0.5 px where the fingers turn back, the larger part of the
+    // moving skin's error. Measured over these windows: without the acceleration the error
+    // follows the shift with slope 1.01; with it, 0.19, the decoded acceleration being 0.83 of
+    // the truth (it is the mean over the half frame before).
+    let rig = rig(10.0, 0.0, 0.0);
+    let s = acceleration_samples(&rig, DecodeParams::default());
+    assert!(s.error_px.len() > 10_000, "{}", s.error_px.len());
+    let left = slope(&s.shift_px, &s.error_px);
+    let gain = slope(&s.true_px_per_s2, &s.decoded_px_per_s2);
+    let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt();
+    eprintln!(
+        "shift left {left:.3}, acceleration gain {gain:.3}, error {:.3} px, shift {:.3} px",
+        rms(&s.error_px),
+        rms(&s.shift_px)
+    );
+    assert!(
+        left.abs() < 0.4,
+        "the error still follows the shift: {left}"
+    );
+    assert!((0.6..1.1).contains(&gain), "acceleration gain {gain}");
+    // The case does accelerate: the shift is a large part of the error to remove.
+    assert!(rms(&s.shift_px) > 0.08, "the case is not accelerating");
+}
+
+#[test]
+fn a_still_hand_has_no_acceleration() {
+    // At the rig's default noise, consecutive windows of a still hand give no acceleration
+    // beyond the velocity test's own chance hits (10⁻⁶ per pixel: measured, 4 pixel-windows
+    // of 1.8 million, 1 of them with an acceleration), since only skin that moves now or
+    // moved in the previous window may accelerate.
+    let rig = rig(0.0, 0.0, 0.0);
+    let mut decoder = tremorscan::decode::SlidingDecoder::new(
+        rig.sequence.clone(),
+        rig.config.cross_talk,
+        DecodeParams::default(),
+    )
+    .unwrap();
+    let mut frame = rig.blank_frame();
+    let (mut decoded, mut accelerating, mut moving) = (0, 0, 0);
+    for i in 0..9u64 {
+        rig.render(i, &mut frame, None).unwrap();
+        if let tremorscan::decode::WindowOutcome::Decoded(out) = decoder.push(&frame).unwrap() {
+            decoded += 1;
+            let nonzero = |v: &[f32]| v.iter().filter(|&&a| a != 0.0).count();
+            accelerating += nonzero(&out.acceleration_px_per_s2);
+            moving += nonzero(&out.velocity_px_per_s);
+        }
+    }
+    assert_eq!(decoded, 7);
+    assert!(moving <= 10, "{moving} pixel-windows moving");
+    assert!(
+        accelerating <= moving,
+        "{accelerating} accelerating, {moving} moving"
+    );
 }

@@ -289,6 +289,10 @@ pub struct DecodeOutput {
     pub velocity_px_per_s: Vec<f32>,
     /// The motion model's brightness change, relative per second (`κ`; as the velocity).
     pub brightness_rate_per_s: Vec<f32>,
+    /// The motion model's coordinate acceleration, projector px/s²: the change of the pixel's
+    /// patch velocity since the previous window, where that window was the one just before and
+    /// the change is significant (see [`motion`]); 0 elsewhere.
+    pub acceleration_px_per_s2: Vec<f32>,
     /// How long each stage took for this window.
     pub timings: StageTimings,
     pub(crate) unit_re: Vec<f32>,
@@ -304,6 +308,13 @@ pub struct DecodeOutput {
     pub(crate) band_scratch_len: usize,
     /// The motion model's noise estimate's samples.
     pub(crate) noise_scratch: Vec<f32>,
+    /// The patch velocity of every pixel in the last window the motion model decoded (NaN where
+    /// its patch had no evidence), px/s, and that window's centre time (NaN before the first):
+    /// the acceleration's other end.
+    pub(crate) patch_velocity_px_per_s: Vec<f32>,
+    pub(crate) patch_velocity_time_s: f64,
+    /// Whether that velocity was significant (1) or not (0).
+    pub(crate) patch_moving: Vec<u8>,
 }
 
 impl DecodeOutput {
@@ -326,6 +337,7 @@ impl DecodeOutput {
             invalid: vec![0; n],
             velocity_px_per_s: vec![0.0; n],
             brightness_rate_per_s: vec![0.0; n],
+            acceleration_px_per_s2: vec![0.0; n],
             motion_evidence: vec![0.0; 3 * n],
             timings: StageTimings::default(),
             unit_re: vec![0.0; n],
@@ -338,6 +350,9 @@ impl DecodeOutput {
             band_scratch: vec![0.0; bands * band_scratch_len],
             band_scratch_len,
             noise_scratch: Vec::with_capacity(n / (motion_noise::GRID_STEP_PX.pow(2)) + width),
+            patch_velocity_px_per_s: vec![f32::NAN; n],
+            patch_velocity_time_s: f64::NAN,
+            patch_moving: vec![0; n],
         }
     }
 
@@ -379,6 +394,8 @@ impl DecodeOutput {
             + self.coordinate_px.capacity()
             + self.velocity_px_per_s.capacity()
             + self.brightness_rate_per_s.capacity()
+            + self.acceleration_px_per_s2.capacity()
+            + self.patch_velocity_px_per_s.capacity()
             + self.motion_evidence.capacity()
             + self.unit_re.capacity()
             + self.unit_im.capacity()
@@ -387,7 +404,10 @@ impl DecodeOutput {
             + self.vertical_state.capacity()
             + self.band_scratch.capacity()
             + self.noise_scratch.capacity();
-        let bytes = self.invalid.capacity() + self.connect.capacity() + self.jump.capacity();
+        let bytes = self.invalid.capacity()
+            + self.connect.capacity()
+            + self.jump.capacity()
+            + self.patch_moving.capacity();
         floats * std::mem::size_of::<f32>() + bytes
     }
 
@@ -520,6 +540,11 @@ pub(crate) fn finish_window(
         let noise_gray = measured.map_or(params.camera_noise_gray, |m| {
             m.max(params.camera_noise_gray)
         });
+        // The previous window's patch velocities give the acceleration only when that window
+        // was the one just before (a frame interval earlier, within a quarter of one).
+        let since_s = (out.time_s - out.patch_velocity_time_s) as f32;
+        let interval_s = basis.frame_interval_s;
+        let previous = ((since_s - interval_s).abs() < 0.25 * interval_s).then_some(since_s);
         let iterations = params.motion.iterations;
         for i in 0..iterations {
             let kind = if i == 0 {
@@ -528,8 +553,11 @@ pub(crate) fn finish_window(
                 motion::StepKind::Refine
             };
             let last = i + 1 == iterations;
-            motion::motion_step(solver, params, noise_gray, basis, kind, last, out);
+            motion::motion_step(solver, params, noise_gray, basis, kind, last, previous, out);
         }
+        out.patch_velocity_time_s = out.time_s;
+    } else {
+        out.patch_velocity_time_s = f64::NAN;
     }
     let corrected = Instant::now();
     if params.unwrap == UnwrapMethod::ChebyshevRobust {
@@ -537,6 +565,9 @@ pub(crate) fn finish_window(
     }
     let smoothed = Instant::now();
     unwrap::unwrap_and_combine(solver, params, chebyshev_n, out);
+    if let Some(basis) = motion_basis {
+        motion::remove_acceleration_shift(basis, out);
+    }
     if params.unwrap == UnwrapMethod::ChebyshevRobust && params.check_order_jumps {
         let finest = solver.frequency_rad_per_px[0];
         consistency::flag_order_jumps(out, std::f32::consts::PI / finest);

@@ -64,6 +64,10 @@ pub struct MotionBasis {
     pub(super) max_brightness_rate: f32,
     /// The largest |u| whose turns stay within [`MAX_TURN_RAD`] at every frequency, px/s.
     pub(super) max_velocity: f32,
+    /// The frame interval: half the window's span, s.
+    pub(super) frame_interval_s: f32,
+    /// `mean(τ_k²)`, s².
+    pub(super) mean_tau2_s2: f32,
 }
 
 impl MotionBasis {
@@ -114,6 +118,8 @@ impl MotionBasis {
             bias_gray: factored.bias_gray,
             max_brightness_rate: MAX_BRIGHTNESS_STEP / span_s,
             max_velocity: MAX_TURN_RAD / (f[0].max(f[1]).max(f[2]) * span_s),
+            frame_interval_s: (tau_s[2] - tau_s[0]) / 2.0,
+            mean_tau2_s2: tau_s.iter().map(|t| t * t).sum::<f32>() / 3.0,
         })
     }
 
