@@ -5,7 +5,7 @@
 #![allow(clippy::unwrap_used, reason = "tests")]
 
 use std::sync::OnceLock;
-use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
+use tremorscan::decode::{frames_averaged, DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::frame::Frame;
 use tremorscan::rig::{RigConfig, Scene, Tremor, VirtualRig};
 use tremorscan::tremor::{
@@ -88,8 +88,8 @@ fn track(config: &RigConfig, frames: &[Frame], kept: impl Fn(u64) -> bool) -> Ve
     samples
 }
 
-/// The analysis of decoded samples (compensating the 3-frame decode window), or with
-/// `window_frames` 1 for exact truth series.
+/// The analysis of decoded samples (undoing what the decode window averages, as `analyze`
+/// does), or with `window_frames` 1 for exact truth series.
 fn report_with(samples: &[TrackSample], window_frames: usize) -> TremorReport {
     let times: Vec<f64> = samples.iter().map(|s| s.time_s).collect();
     let d = displacements(samples, &nalgebra::Vector3::z());
@@ -100,8 +100,9 @@ fn report_with(samples: &[TrackSample], window_frames: usize) -> TremorReport {
     analyze(&times, &d, &options).unwrap()
 }
 
-fn report(samples: &[TrackSample]) -> TremorReport {
-    report_with(samples, 3)
+fn report(config: &RigConfig, samples: &[TrackSample]) -> TremorReport {
+    let seq = config.default_sequence().unwrap();
+    report_with(samples, frames_averaged(&seq, &DecodeParams::default()))
 }
 
 /// The truth, through the same analysis, at the same instants: `material` follows the rig's
@@ -133,7 +134,7 @@ fn truth_report(config: &RigConfig, samples: &[TrackSample], material: bool) -> 
 }
 
 fn check(config: &RigConfig, samples: &[TrackSample]) -> (TremorReport, TremorReport) {
-    let measured = report(samples);
+    let measured = report(config, samples);
     let truth = truth_report(config, samples, false);
     let material = truth_report(config, samples, true);
     let f = measured.peak_frequency_hz.unwrap();
@@ -206,7 +207,7 @@ fn a_still_hand_gives_no_tremor_peak() {
     let config = config(Some(Tremor::flexion(5.3, 0.0, 0.0)));
     let frames = render_all(&config);
     let samples = track(&config, &frames, |_| true);
-    let r = report(&samples);
+    let r = report(&config, &samples);
     println!(
         "still hand: band RMS {:.4} mm, p2p {:.4} mm",
         r.amplitude_rms_mm, r.amplitude_peak_to_peak_mm

@@ -190,6 +190,7 @@ pub struct Pipeline {
     config: PipelineConfig,
     threads: Vec<JoinHandle<()>>,
     camera_name: String,
+    frames_averaged: usize,
 }
 
 mod stages;
@@ -231,6 +232,7 @@ impl Pipeline {
             });
         }
         let camera_name = camera.name();
+        let frames_averaged = crate::decode::frames_averaged(&sequence, &config.decode_params);
         // A window must not span a lost frame: the scene moves between them.
         let window = sequence.entries.len() as f64;
         let max_span_s = (window - 0.5) / camera.fps().max(1e-3);
@@ -303,11 +305,18 @@ impl Pipeline {
             config,
             threads: vec![capture, decode],
             camera_name,
+            frames_averaged,
         })
     }
 
     pub fn camera_name(&self) -> &str {
         &self.camera_name
+    }
+
+    /// How many frames each decoded coordinate averages ([`crate::decode::frames_averaged`]),
+    /// for the tremor analysis of what this pipeline measures.
+    pub fn frames_averaged(&self) -> usize {
+        self.frames_averaged
     }
 
     /// What runs the decode now ("CPU (AVX-512, 2 threads)", or the GPU's name).

@@ -10,7 +10,7 @@
 //! (a large tremor carries the fingertip off its pixel) are missing in the truth too.
 
 use super::{RigError, Scene, VirtualRig};
-use crate::decode::{DecodeError, DecodeParams, SlidingDecoder, WindowOutcome};
+use crate::decode::{frames_averaged, DecodeError, DecodeParams, SlidingDecoder, WindowOutcome};
 use crate::rig::scene::Material;
 use crate::tremor::{
     analyze, displacements, locate, AnalysisOptions, TrackOptions, TrackSample, TremorError,
@@ -129,7 +129,7 @@ pub fn fingertip_tremor(
         .collect();
     Ok(FingertipTremor {
         pixel,
-        measured: analysis(&samples, rig.sequence.entries.len()),
+        measured: analysis(&samples, frames_averaged(&rig.sequence, &params)),
         truth: analysis(&truth, 1),
     })
 }

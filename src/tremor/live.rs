@@ -56,6 +56,9 @@ pub struct LiveTracker {
     /// Scene seconds of history kept per point.
     pub history_s: f64,
     pub options: TrackOptions,
+    /// How the figures of the points are computed; its `window_frames` is the source's
+    /// ([`crate::pipeline::Pipeline::frames_averaged`]).
+    pub analysis: AnalysisOptions,
     /// Clouds seen so far.
     pub clouds_seen: u64,
     next_id: u64,
@@ -68,6 +71,7 @@ impl LiveTracker {
             points: Vec::new(),
             history_s,
             options: TrackOptions::default(),
+            analysis: AnalysisOptions::default(),
             clouds_seen: 0,
             next_id: 1,
             last_time_s: None,

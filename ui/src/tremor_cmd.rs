@@ -7,7 +7,7 @@ use nalgebra::Vector3;
 use serde_json::json;
 use std::io::Write;
 use std::path::PathBuf;
-use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
+use tremorscan::decode::{frames_averaged, DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::session::Session;
 use tremorscan::tremor::{
     analyze, displacements, fit_table_normal, locate, pixel_of, AnalysisOptions, TrackOptions,
@@ -269,12 +269,18 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
     let points = all_pixels(&session, &args.control)?;
     let (tracks, axis) = track_session(&session, &points, args.control.vertical.as_deref())?;
+    // The tracks were decoded with the default parameters: the analysis undoes the averaging
+    // that decode leaves.
+    let options = AnalysisOptions {
+        window_frames: frames_averaged(&session.sequence()?, &DecodeParams::default()),
+        ..AnalysisOptions::default()
+    };
     let mut objects = Vec::new();
     let mut series = Vec::new();
     for (track, &(u, v)) in tracks.iter().zip(&points) {
         let times: Vec<f64> = track.iter().map(|s| s.time_s).collect();
         let d = displacements(track, &axis);
-        let report = match analyze(&times, &d, &AnalysisOptions::default()) {
+        let report = match analyze(&times, &d, &options) {
             Ok(r) => {
                 println!(
                     "point ({u}, {v}): peak {} Hz, peak-to-peak {:.3} mm, RMS {:.3} mm, occupancy {:.0} %, MDS-UPDRS amplitude bin {}, {} % valid",

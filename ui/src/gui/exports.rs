@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 use tremorscan::pipeline::CloudFrame;
-use tremorscan::tremor::{AnalysisOptions, LiveTracker, TrackSample};
+use tremorscan::tremor::{LiveTracker, TrackSample};
 
 /// What the user asked to export.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -108,7 +108,7 @@ pub fn export_report(png: &Path, tracker: &LiveTracker) -> Result<String> {
     let mut objects = Vec::new();
     for p in &tracker.points {
         let (times, d) = p.displacement_series(&axis);
-        let report = match tremorscan::tremor::analyze(&times, &d, &AnalysisOptions::default()) {
+        let report = match tremorscan::tremor::analyze(&times, &d, &tracker.analysis) {
             Ok(r) => {
                 let mut object = report_json(p.pixel, &r, &axis);
                 object["name"] = serde_json::Value::String(p.name.clone());

@@ -193,8 +193,9 @@ impl Source {
         playback: Option<Arc<PlaybackControl>>,
         session: Option<Session>,
         nominal_fps: f64,
-        tracker: LiveTracker,
+        mut tracker: LiveTracker,
     ) -> Result<Self> {
+        tracker.analysis.window_frames = pipeline.frames_averaged();
         let tracker = Arc::new(Mutex::new(tracker));
         let tracker_thread = match pipeline.consumer_queue() {
             Some(queue) => {

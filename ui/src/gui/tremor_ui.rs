@@ -37,7 +37,7 @@ pub fn summary(r: &TremorReport) -> String {
 
 impl TremorPanel {
     /// Recomputes the figures when due (or when `force`d).
-    pub fn update(&mut self, series: &[Series], force: bool) {
+    pub fn update(&mut self, series: &[Series], options: &AnalysisOptions, force: bool) {
         if !force && self.computed.is_some_and(|t| t.elapsed() < REFRESH) {
             return;
         }
@@ -45,8 +45,7 @@ impl TremorPanel {
         self.results = series
             .iter()
             .map(|s| {
-                let r = analyze(&s.times_s, &s.displacement_mm, &AnalysisOptions::default())
-                    .map_err(|e| e.to_string());
+                let r = analyze(&s.times_s, &s.displacement_mm, options).map_err(|e| e.to_string());
                 (s.id, s.name.clone(), s.colour, r)
             })
             .collect();
