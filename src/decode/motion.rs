@@ -128,17 +128,32 @@ pub(crate) struct Chebyshev3 {
 pub(crate) fn chebyshev3(z: [(f32, f32); 3], gain2: (f32, f32, f32)) -> Chebyshev3 {
     let [(c0, s0), (c1, s1), (c2, s2)] = z;
     let (a0, a1, a2) = (c0 * c0 + s0 * s0, c1 * c1 + s1 * s1, c2 * c2 + s2 * s2);
+    let phase = [
+        phase_0_tau(s0, c0),
+        phase_0_tau(s1, c1),
+        phase_0_tau(s2, c2),
+    ];
+    chebyshev3_of(z, phase, [a0.sqrt(), a1.sqrt(), a2.sqrt()], gain2)
+}
+
+/// [`chebyshev3`] of phasors `z` whose phases and amplitudes are already known (a pixel the
+/// step leaves as it was): no arctangents or roots.
+#[inline(always)]
+fn chebyshev3_of(
+    z: [(f32, f32); 3],
+    phase: [f32; 3],
+    amplitude: [f32; 3],
+    gain2: (f32, f32, f32),
+) -> Chebyshev3 {
+    let [(c0, s0), (c1, s1), (c2, s2)] = z;
+    let [a0, a1, a2] = amplitude.map(|a| a * a);
     // p = z0·conj(z1) and q = z1·conj(z2) both estimate a0·a1·e^{i f1 x} (eq. 13 and its sine
     // form); the unit phasor is their sum.
     let (pr, pi) = (c0 * c1 + s0 * s1, s0 * c1 - c0 * s1);
     let (qr, qi) = (c1 * c2 + s1 * s2, s1 * c2 - c1 * s2);
     Chebyshev3 {
-        phase: [
-            phase_0_tau(s0, c0),
-            phase_0_tau(s1, c1),
-            phase_0_tau(s2, c2),
-        ],
-        amplitude: [a0.sqrt(), a1.sqrt(), a2.sqrt()],
+        phase,
+        amplitude,
         unit: (pr + qr, pi + qi),
         t: (pr * qr + pi * qi, pi * qr - pr * qi),
         var_over_noise: gain2.0 / a0 + gain2.1 / a1 + gain2.2 / a2,
@@ -526,13 +541,21 @@ fn correct_row_as<const REFINE: bool, const LAST: bool>(step: &Step<'_>, row: Ro
         }
         velocity[x] = u;
         brightness[x] = kappa;
-        let cheb = chebyshev3(z, step.gain2);
-        ph0[x] = cheb.phase[0];
-        ph1[x] = cheb.phase[1];
-        ph2[x] = cheb.phase[2];
-        am0[x] = cheb.amplitude[0];
-        am1[x] = cheb.amplitude[1];
-        am2[x] = cheb.amplitude[2];
+        // A pixel the step leaves as it was (still, and not corrected before: most of a scene)
+        // keeps its phases and amplitudes, without recomputing them.
+        let changed = moving | corrected_before;
+        let cheb = if changed {
+            let cheb = chebyshev3(z, step.gain2);
+            ph0[x] = cheb.phase[0];
+            ph1[x] = cheb.phase[1];
+            ph2[x] = cheb.phase[2];
+            am0[x] = cheb.amplitude[0];
+            am1[x] = cheb.amplitude[1];
+            am2[x] = cheb.amplitude[2];
+            cheb
+        } else {
+            chebyshev3_of(z, phases, amps, step.gain2)
+        };
         if !LAST {
             // The next step's evidence, from the corrected phasors. The flags still hold stage
             // 1's signal reasons alone.
