@@ -72,9 +72,11 @@
 //! Only CPS-RGB windows (three frames, factored solve) take the model; other sequences decode
 //! as before.
 
-use super::fastmath::{atan2, phase_0_tau, sin_cos_phase, sin_cos_small, whole_to_byte};
+use super::fastmath::{sin_cos_phase, sin_cos_small, whole_to_byte};
 use super::motion_basis::apply;
 pub use super::motion_basis::{MotionBasis, MAX_TURN_RAD};
+pub(crate) use super::motion_evidence::{chebyshev3, evidence, gain2, inconsistent};
+use super::motion_evidence::{chebyshev3_of, evidence_with};
 use super::smooth::{smooth_planes, Planes};
 use super::{invalid, DecodeOutput, DecodeParams, WindowSolver};
 use rayon::prelude::*;
@@ -107,135 +109,6 @@ const MIN_ACCELERATION_SHIFT_PX: f32 = 0.05;
 /// can make is not motion of one surface (at an outline the pixel saw another surface in the
 /// previous window), and the pixel gets no acceleration.
 const MAX_OSCILLATION_HZ: f32 = 8.0;
-
-/// The per-pixel Chebyshev quantities of three phasors (slots 0, 1, 2 = frequencies n, n−1,
-/// n−2), shared by stage 1 and the motion correction.
-#[derive(Clone, Copy)]
-pub(crate) struct Chebyshev3 {
-    pub phase: [f32; 3],
-    pub amplitude: [f32; 3],
-    /// The unit phasor `z_0·z̄_1 + z_1·z̄_2`.
-    pub unit: (f32, f32),
-    /// `t = (z_0·z̄_1)·conj(z_1·z̄_2)`, whose angle is `φ_0 − 2φ_1 + φ_2`.
-    pub t: (f32, f32),
-    /// The variance of that angle over the camera noise variance.
-    pub var_over_noise: f32,
-}
-
-/// Phases, amplitudes, unit phasor and the Chebyshev residual of `z`; `gain2` holds the squared
-/// noise gains `(g_0², 4·g_1², g_2²)`.
-#[inline(always)]
-pub(crate) fn chebyshev3(z: [(f32, f32); 3], gain2: (f32, f32, f32)) -> Chebyshev3 {
-    let [(c0, s0), (c1, s1), (c2, s2)] = z;
-    let (a0, a1, a2) = (c0 * c0 + s0 * s0, c1 * c1 + s1 * s1, c2 * c2 + s2 * s2);
-    let phase = [
-        phase_0_tau(s0, c0),
-        phase_0_tau(s1, c1),
-        phase_0_tau(s2, c2),
-    ];
-    chebyshev3_of(z, phase, [a0.sqrt(), a1.sqrt(), a2.sqrt()], gain2)
-}
-
-/// [`chebyshev3`] of phasors `z` whose phases and amplitudes are already known (a pixel the
-/// step leaves as it was): no arctangents or roots.
-#[inline(always)]
-fn chebyshev3_of(
-    z: [(f32, f32); 3],
-    phase: [f32; 3],
-    amplitude: [f32; 3],
-    gain2: (f32, f32, f32),
-) -> Chebyshev3 {
-    let [(c0, s0), (c1, s1), (c2, s2)] = z;
-    let [a0, a1, a2] = amplitude.map(|a| a * a);
-    // p = z0·conj(z1) and q = z1·conj(z2) both estimate a0·a1·e^{i f1 x} (eq. 13 and its sine
-    // form); the unit phasor is their sum.
-    let (pr, pi) = (c0 * c1 + s0 * s1, s0 * c1 - c0 * s1);
-    let (qr, qi) = (c1 * c2 + s1 * s2, s1 * c2 - c1 * s2);
-    Chebyshev3 {
-        phase,
-        amplitude,
-        unit: (pr + qr, pi + qi),
-        t: (pr * qr + pi * qi, pi * qr - pr * qi),
-        var_over_noise: gain2.0 / a0 + gain2.1 / a1 + gain2.2 / a2,
-    }
-}
-
-/// Whether the Chebyshev residual of `c` exceeds `limit` (χ² times the noise variance): the two
-/// Chebyshev equations disagree. Tested on sin² of the angle, no atan2.
-#[inline(always)]
-pub(crate) fn inconsistent(c: &Chebyshev3, limit: f32) -> bool {
-    let (tr, ti) = c.t;
-    let sin2 = ti * ti / (tr * tr + ti * ti);
-    (tr < 0.0) | (sin2 > limit * c.var_over_noise)
-}
-
-/// The squared noise gains of `solver`'s slots, as [`chebyshev3`] takes them.
-pub(crate) fn gain2(solver: &WindowSolver) -> (f32, f32, f32) {
-    let g = &solver.noise_gain;
-    (g[0] * g[0], 4.0 * g[1] * g[1], g[2] * g[2])
-}
-
-/// One pixel's evidence for its patch's `(u, κ)`: the five terms of the normal equations.
-#[derive(Clone, Copy)]
-pub(crate) struct Evidence {
-    pub uu: f32,
-    pub uk: f32,
-    pub kk: f32,
-    pub ue: f32,
-    pub ke: f32,
-}
-
-impl Evidence {
-    const NONE: Self = Self {
-        uu: 0.0,
-        uk: 0.0,
-        kk: 0.0,
-        ue: 0.0,
-        ke: 0.0,
-    };
-}
-
-/// The evidence of a still pixel (stage 1) with phasors `z`, their Chebyshev quantities `c`
-/// and camera offsets `offsets`; none where `keep` is 0 or the weights are not finite.
-#[inline(always)]
-pub(crate) fn evidence(
-    basis: &MotionBasis,
-    z: [(f32, f32); 3],
-    c: &Chebyshev3,
-    offsets: [f32; 3],
-    keep: f32,
-) -> Evidence {
-    let dz = basis.slopes_at_rest(z, basis.lit_offsets(offsets));
-    evidence_with(z, dz, c, keep, (0.0, 0.0))
-}
-
-/// The evidence of a pixel whose phasors `z`, corrected at `(u, κ) = at`, move by `dz` per
-/// unit of `u` and `κ`. It is in absolute terms, `e + D_u·u + D_κ·κ` against `(D_u, D_κ)`, so
-/// that pixels linearised at different velocities pool into one estimate of their patch's.
-#[inline(always)]
-fn evidence_with(
-    z: [(f32, f32); 3],
-    dz: [[(f32, f32); 2]; 3],
-    c: &Chebyshev3,
-    keep: f32,
-    at: (f32, f32),
-) -> Evidence {
-    let (du, dk) = MotionBasis::residual_slopes(z, dz);
-    let e = atan2(c.t.1, c.t.0) + du * at.0 + dk * at.1;
-    let w = keep / c.var_over_noise;
-    let ok = w.is_finite() & du.is_finite() & dk.is_finite() & (keep > 0.0);
-    if ok {
-        Evidence {
-            uu: w * du * du,
-            uk: w * du * dk,
-            kk: w * dk * dk,
-            ue: w * du * e,
-            ke: w * dk * e,
-        }
-    } else {
-        Evidence::NONE
-    }
-}
 
 /// Sums the evidence over each pixel's connected patch (two passes of the edge-aware filter),
 /// then corrects the phasors: one Gauss–Newton step. Stage 1 (or the previous step) left the
@@ -646,84 +519,4 @@ fn cross_dot(a: (f32, f32), b: (f32, f32)) -> f32 {
 #[inline(always)]
 fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::color::CrossTalk;
-    use crate::pattern::{cps_rgb, Axis};
-
-    /// A channel's three samples of a phasor turning at `g` rad/s, through the still closed
-    /// form: what stage 1 returns.
-    fn still_solve(solver: &WindowSolver, z: (f32, f32), g: f32, times: [f64; 3]) -> (f32, f32) {
-        let f = solver.factored.as_ref().unwrap();
-        let centre = times.iter().sum::<f64>() / 3.0;
-        let (mut u, mut v) = (0.0, 0.0);
-        for k in 0..3 {
-            let turn = g * (times[k] - centre) as f32;
-            let (x, y) = (
-                z.0 * turn.cos() - z.1 * turn.sin(),
-                z.0 * turn.sin() + z.1 * turn.cos(),
-            );
-            let sample = 40.0 + f.shift_rad[k].cos() * x - f.shift_rad[k].sin() * y;
-            u += f.closed_form[1][k] * sample;
-            v += f.closed_form[2][k] * sample;
-        }
-        (u, v)
-    }
-
-    #[test]
-    fn the_response_inverts_what_the_still_solve_does_to_a_moving_phasor() {
-        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
-        for order in [[0, 1, 2], [1, 2, 0], [2, 0, 1]] {
-            let solver = WindowSolver::new(&seq, &order, &CrossTalk::paper()).unwrap();
-            let times = [0.0, 1.0 / 121.0, 2.0 / 121.0];
-            let basis = MotionBasis::new(&solver, times).unwrap();
-            for g in [0.0f32, 30.0, -60.0, 110.0] {
-                for phase in [0.3f32, 1.9, 4.0] {
-                    let z = (25.0 * phase.cos(), 25.0 * phase.sin());
-                    let seen = still_solve(&solver, z, g, times);
-                    let (m, within) = basis.response(g, 0.0);
-                    assert!(within);
-                    let predicted = apply(&m, z);
-                    assert!(
-                        (predicted.0 - seen.0).abs() < 1e-3 && (predicted.1 - seen.1).abs() < 1e-3,
-                        "{order:?} g {g}: {predicted:?} vs {seen:?}"
-                    );
-                    if g != 0.0 {
-                        // Motion does bend the still solution: the test is not vacuous.
-                        let bent = (seen.0 - z.0).hypot(seen.1 - z.1);
-                        assert!(bent > 0.05, "{bent}");
-                    }
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn the_residual_slope_predicts_the_chebyshev_residual_of_slow_motion() {
-        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
-        let solver = WindowSolver::new(&seq, &[1, 2, 0], &CrossTalk::paper()).unwrap();
-        let times = [0.0, 1.0 / 121.0, 2.0 / 121.0];
-        let basis = MotionBasis::new(&solver, times).unwrap();
-        let f = basis.f_rad_per_px;
-        let x0 = 437.3f32;
-        // A slow velocity, so that first order is exact to a few per cent.
-        let u = 2.0f32; // px/s
-        let z: [(f32, f32); 3] = std::array::from_fn(|s| {
-            let phase = f[s] * x0;
-            let z = (30.0 * phase.cos(), 30.0 * phase.sin());
-            still_solve(&solver, z, f[s] * u, times)
-        });
-        let c = chebyshev3(z, gain2(&solver));
-        let e = c.t.1.atan2(c.t.0);
-        let slopes = MotionBasis::residual_slopes(z, basis.slopes_at_rest(z, [60.0; 3]));
-        let predicted = slopes.0 * u;
-        assert!(
-            (e - predicted).abs() < 0.05 * predicted.abs() + 1e-6,
-            "{e} vs {predicted}"
-        );
-        assert!(predicted.abs() > 1e-4, "{predicted}");
-    }
 }

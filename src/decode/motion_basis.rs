@@ -248,3 +248,84 @@ impl MotionBasis {
         ]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::color::CrossTalk;
+    use crate::decode::motion_evidence::{chebyshev3, gain2};
+    use crate::pattern::{cps_rgb, Axis};
+
+    /// A channel's three samples of a phasor turning at `g` rad/s, through the still closed
+    /// form: what stage 1 returns.
+    fn still_solve(solver: &WindowSolver, z: (f32, f32), g: f32, times: [f64; 3]) -> (f32, f32) {
+        let f = solver.factored.as_ref().unwrap();
+        let centre = times.iter().sum::<f64>() / 3.0;
+        let (mut u, mut v) = (0.0, 0.0);
+        for k in 0..3 {
+            let turn = g * (times[k] - centre) as f32;
+            let (x, y) = (
+                z.0 * turn.cos() - z.1 * turn.sin(),
+                z.0 * turn.sin() + z.1 * turn.cos(),
+            );
+            let sample = 40.0 + f.shift_rad[k].cos() * x - f.shift_rad[k].sin() * y;
+            u += f.closed_form[1][k] * sample;
+            v += f.closed_form[2][k] * sample;
+        }
+        (u, v)
+    }
+
+    #[test]
+    fn the_response_inverts_what_the_still_solve_does_to_a_moving_phasor() {
+        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
+        for order in [[0, 1, 2], [1, 2, 0], [2, 0, 1]] {
+            let solver = WindowSolver::new(&seq, &order, &CrossTalk::paper()).unwrap();
+            let times = [0.0, 1.0 / 121.0, 2.0 / 121.0];
+            let basis = MotionBasis::new(&solver, times).unwrap();
+            for g in [0.0f32, 30.0, -60.0, 110.0] {
+                for phase in [0.3f32, 1.9, 4.0] {
+                    let z = (25.0 * phase.cos(), 25.0 * phase.sin());
+                    let seen = still_solve(&solver, z, g, times);
+                    let (m, within) = basis.response(g, 0.0);
+                    assert!(within);
+                    let predicted = apply(&m, z);
+                    assert!(
+                        (predicted.0 - seen.0).abs() < 1e-3 && (predicted.1 - seen.1).abs() < 1e-3,
+                        "{order:?} g {g}: {predicted:?} vs {seen:?}"
+                    );
+                    if g != 0.0 {
+                        // Motion does bend the still solution: the test is not vacuous.
+                        let bent = (seen.0 - z.0).hypot(seen.1 - z.1);
+                        assert!(bent > 0.05, "{bent}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_residual_slope_predicts_the_chebyshev_residual_of_slow_motion() {
+        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
+        let solver = WindowSolver::new(&seq, &[1, 2, 0], &CrossTalk::paper()).unwrap();
+        let times = [0.0, 1.0 / 121.0, 2.0 / 121.0];
+        let basis = MotionBasis::new(&solver, times).unwrap();
+        let f = basis.f_rad_per_px;
+        let x0 = 437.3f32;
+        // A slow velocity, so that first order is exact to a few per cent.
+        let u = 2.0f32; // px/s
+        let z: [(f32, f32); 3] = std::array::from_fn(|s| {
+            let phase = f[s] * x0;
+            let z = (30.0 * phase.cos(), 30.0 * phase.sin());
+            still_solve(&solver, z, f[s] * u, times)
+        });
+        let c = chebyshev3(z, gain2(&solver));
+        let e = c.t.1.atan2(c.t.0);
+        let slopes = MotionBasis::residual_slopes(z, basis.slopes_at_rest(z, [60.0; 3]));
+        let predicted = slopes.0 * u;
+        assert!(
+            (e - predicted).abs() < 0.05 * predicted.abs() + 1e-6,
+            "{e} vs {predicted}"
+        );
+        assert!(predicted.abs() > 1e-4, "{predicted}");
+    }
+}

@@ -8,7 +8,7 @@
 //! less sensitive to the level, so an operator's setting that is too low went unnoticed.
 //!
 //! On a still pixel the Chebyshev residual `e = φ_0 − 2φ_1 + φ_2` is normal with variance
-//! `v·σ²`, `v` known from the amplitudes ([`super::motion::Chebyshev3::var_over_noise`]), so
+//! `v·σ²`, `v` known from the amplitudes ([`super::motion_evidence::Chebyshev3::var_over_noise`]), so
 //! `e²/v` is `σ²` times a χ² variable of one degree of freedom, whose median is 0.455. The
 //! median of `e²/v` over a grid of the window's pixels with a valid signal, divided by 0.455,
 //! estimates `σ²`. Most of a scene is still, and the median ignores the moving minority (a
