@@ -33,6 +33,7 @@ pub mod phasor;
 pub mod reference;
 pub mod smooth;
 pub mod solver;
+mod temporal;
 pub mod unwrap;
 pub mod window;
 
@@ -64,7 +65,8 @@ pub mod invalid {
     pub const LOW_SUPPORT: u8 = 16;
     /// The coordinate falls outside `[0, x_max)`.
     pub const OUT_OF_RANGE: u8 = 32;
-    /// A connected neighbour's coordinate differs by more than half a fringe period.
+    /// A connected neighbour's coordinate differs by more than half a fringe period; with the
+    /// motion model, also the pixel's own coordinate one or two windows earlier (`temporal`).
     pub const ORDER_JUMP: u8 = 64;
     /// The motion inside the window is more than the motion model explains (a frame's phase
     /// turns by more than [`super::motion::MAX_TURN_RAD`], or the model is near singular).
@@ -317,6 +319,10 @@ pub struct DecodeOutput {
     pub(crate) patch_velocity_time_s: f64,
     /// Whether that velocity was significant (1) or not (0).
     pub(crate) patch_moving: Vec<u8>,
+    /// Each pixel's last valid coordinate in the motion model's recent windows (NaN before
+    /// any), projector px, and how many windows ago it was: [`temporal`]'s reference.
+    pub(crate) recent_coordinate_px: Vec<f32>,
+    pub(crate) recent_age_windows: Vec<u8>,
 }
 
 impl DecodeOutput {
@@ -355,6 +361,8 @@ impl DecodeOutput {
             patch_velocity_px_per_s: vec![f32::NAN; n],
             patch_velocity_time_s: f64::NAN,
             patch_moving: vec![0; n],
+            recent_coordinate_px: vec![f32::NAN; n],
+            recent_age_windows: vec![u8::MAX; n],
         }
     }
 
@@ -398,6 +406,7 @@ impl DecodeOutput {
             + self.brightness_rate_per_s.capacity()
             + self.acceleration_px_per_s2.capacity()
             + self.patch_velocity_px_per_s.capacity()
+            + self.recent_coordinate_px.capacity()
             + self.motion_evidence.capacity()
             + self.unit_re.capacity()
             + self.unit_im.capacity()
@@ -409,7 +418,8 @@ impl DecodeOutput {
         let bytes = self.invalid.capacity()
             + self.connect.capacity()
             + self.jump.capacity()
-            + self.patch_moving.capacity();
+            + self.patch_moving.capacity()
+            + self.recent_age_windows.capacity();
         floats * std::mem::size_of::<f32>() + bytes
     }
 
@@ -558,6 +568,14 @@ pub(crate) fn finish_window(
     out: &mut DecodeOutput,
 ) {
     let solved = Instant::now();
+    // Whether the previous window decoded into `out` by the motion model was the one just
+    // before (a frame interval earlier, within a quarter of one): then its patch velocities
+    // give the acceleration, and its coordinates the temporal order check's reference.
+    let previous_s = motion_basis.and_then(|basis| {
+        let since_s = (out.time_s - out.patch_velocity_time_s) as f32;
+        let interval_s = basis.frame_interval_s;
+        ((since_s - interval_s).abs() < 0.25 * interval_s).then_some(since_s)
+    });
     if let Some(basis) = motion_basis {
         smooth::compute_connectivity(out, &params.smoothing);
         // The significance test's noise: the configured level, or the higher one the window's
@@ -568,11 +586,6 @@ pub(crate) fn finish_window(
         let noise_gray = measured.map_or(params.camera_noise_gray, |m| {
             m.max(params.camera_noise_gray)
         });
-        // The previous window's patch velocities give the acceleration only when that window
-        // was the one just before (a frame interval earlier, within a quarter of one).
-        let since_s = (out.time_s - out.patch_velocity_time_s) as f32;
-        let interval_s = basis.frame_interval_s;
-        let previous = ((since_s - interval_s).abs() < 0.25 * interval_s).then_some(since_s);
         let iterations = params.motion.iterations;
         for i in 0..iterations {
             let kind = if i == 0 {
@@ -581,7 +594,9 @@ pub(crate) fn finish_window(
                 motion::StepKind::Refine
             };
             let last = i + 1 == iterations;
-            motion::motion_step(solver, params, noise_gray, basis, kind, last, previous, out);
+            motion::motion_step(
+                solver, params, noise_gray, basis, kind, last, previous_s, out,
+            );
         }
         out.patch_velocity_time_s = out.time_s;
     } else {
@@ -597,8 +612,16 @@ pub(crate) fn finish_window(
         motion::remove_acceleration_shift(basis, out);
     }
     if params.unwrap == UnwrapMethod::ChebyshevRobust && params.check_order_jumps {
-        let finest = solver.frequency_rad_per_px[0];
-        consistency::flag_order_jumps(out, std::f32::consts::PI / finest);
+        let half_period_px = std::f32::consts::PI / solver.frequency_rad_per_px[0];
+        consistency::flag_order_jumps(out, half_period_px);
+        if let Some(basis) = motion_basis {
+            temporal::flag_temporal_jumps(
+                out,
+                2.0 * half_period_px,
+                basis.max_velocity * basis.frame_interval_s,
+                previous_s.is_some(),
+            );
+        }
     }
     let done = Instant::now();
     out.timings = StageTimings {
