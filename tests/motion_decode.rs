@@ -68,11 +68,14 @@ fn a_swaying_hand_is_measured_despite_its_changing_shading() {
     let (still, motion) = both(&rig(5.0, 4.0, 3.0));
     let coverage = motion.moving.coverage().unwrap();
     let gross = motion.moving.gross_rate().unwrap();
-    // Over these four windows: 90.4 % and 1.9 % (the still window 71.7 % and 11.8 %). The
+    // Over these four windows: 87.3 % and 0.72 % (the still window 71.7 % and 11.8 %). The
     // velocity changes sign across a rolling finger, which a patch's one velocity cannot
-    // follow: this is the model's weakest case (docs/accuracy.md).
-    assert!(coverage >= 0.88, "coverage {coverage}");
-    assert!(gross <= 0.025, "gross {gross}");
+    // follow: this is the model's weakest case (docs/accuracy.md). Before the temporal order
+    // check, 90.4 % and 1.9 %: it refuses wrong fringe orders that lasted a window or two, and
+    // the right ones that follow a longer-lived wrong one, a trade this bound records (it was
+    // 88 %, the gross bound 2.5 %; the code before the check fails the gross bound now).
+    assert!(coverage >= 0.85, "coverage {coverage}");
+    assert!(gross <= 0.012, "gross {gross}");
     assert!(still.moving.gross_rate().unwrap() > 0.08);
 }
 

@@ -30,8 +30,9 @@
 //! 0.76 → 0.35 %. Comparing with the previous window only kept more (84.6 %, 95.7 %) and
 //! refused fewer wrong orders (1.3 %, 0.45 %).
 //!
-//! Only consecutive windows of one stream are compared (the motion model's previous window,
-//! one frame interval earlier); any other window starts afresh.
+//! Only consecutive windows of one stream are compared (the window the check last ran on, one
+//! frame interval earlier, by the time stamp kept with the references); any other window
+//! starts afresh.
 
 use super::{invalid, DecodeOutput};
 use rayon::prelude::*;
@@ -41,14 +42,18 @@ pub const MAX_AGE_WINDOWS: u8 = 2;
 
 /// Marks the pixels whose coordinate moved by a whole number of fringe periods (`period_px`),
 /// give or take `max_step_px` per window of age, since their reference, then makes every valid
-/// pixel its own reference. `consecutive`: this window is one frame after the previous one
-/// decoded into `out`; otherwise no pixel is tested.
+/// pixel its own reference. Only a window one frame interval (`frame_interval_s`, within a
+/// quarter of one) after the last window this check ran on is tested.
 pub(crate) fn flag_temporal_jumps(
     out: &mut DecodeOutput,
     period_px: f32,
     max_step_px: f32,
-    consecutive: bool,
+    frame_interval_s: f32,
 ) {
+    let since_s = (out.time_s - out.recent_time_s) as f32;
+    // NaN (no window before) compares false.
+    let consecutive = (since_s - frame_interval_s).abs() < 0.25 * frame_interval_s;
+    out.recent_time_s = out.time_s;
     let w = out.width;
     let limits = Limits {
         period_px,
@@ -123,11 +128,15 @@ mod tests {
         DecodeOutput::new(w, 1, &solver)
     }
 
-    /// Decodes one "window": sets the coordinates, clears the flags, runs the check.
-    fn window(out: &mut DecodeOutput, coords: &[f32], consecutive: bool) -> Vec<bool> {
+    const INTERVAL_S: f32 = 1.0 / 121.0;
+
+    /// Decodes one "window" `frames` frame intervals after the previous one: sets the time and
+    /// the coordinates, clears the flags, runs the check.
+    fn window(out: &mut DecodeOutput, coords: &[f32], frames: u32) -> Vec<bool> {
+        out.time_s += f64::from(frames) * f64::from(INTERVAL_S);
         out.coordinate_px.copy_from_slice(coords);
         out.invalid.fill(0);
-        flag_temporal_jumps(out, 28.0, 4.5, consecutive);
+        flag_temporal_jumps(out, 28.0, 4.5, INTERVAL_S);
         out.invalid
             .iter()
             .map(|f| f & invalid::ORDER_JUMP != 0)
@@ -148,7 +157,7 @@ mod tests {
             [112.0, 103.0, 103.0, 115.0, 128.0],
             [116.0, 104.0, 104.0, 115.0, 128.0],
         ];
-        let marked: Vec<Vec<bool>> = windows.iter().map(|c| window(&mut out, c, true)).collect();
+        let marked: Vec<Vec<bool>> = windows.iter().map(|c| window(&mut out, c, 1)).collect();
         let column = |x: usize| marked.iter().map(|m| m[x]).collect::<Vec<_>>();
         assert_eq!(column(0), [false; 5]);
         assert_eq!(column(1), [false, false, true, false, false]);
@@ -162,9 +171,9 @@ mod tests {
     #[test]
     fn a_window_after_a_gap_is_not_compared() {
         let mut out = output(2);
-        window(&mut out, &[100.0, 100.0], true);
-        assert_eq!(window(&mut out, &[128.0, 100.0], false), [false, false]);
+        window(&mut out, &[100.0, 100.0], 1);
+        assert_eq!(window(&mut out, &[128.0, 100.0], 3), [false, false]);
         // ... and it becomes the reference for the next one.
-        assert_eq!(window(&mut out, &[100.0, 101.0], true), [true, false]);
+        assert_eq!(window(&mut out, &[100.0, 101.0], 1), [true, false]);
     }
 }
