@@ -50,7 +50,7 @@ pub struct DecodeOutput {
     pub coarse_px: Vec<f32>,
     /// Final projector coordinate, projector px; NaN where invalid.
     pub coordinate_px: Vec<f32>,
-    /// Invalid-reason bits of [`invalid`]; 0 where valid.
+    /// Invalid-reason bits of [`super::invalid`]; 0 where valid.
     pub invalid: Vec<u8>,
     /// The motion model's coordinate velocity, projector px/s (0 where the pixel is invalid;
     /// untouched by windows decoded without the model).
@@ -59,8 +59,8 @@ pub struct DecodeOutput {
     pub brightness_rate_per_s: Vec<f32>,
     /// The motion model's coordinate acceleration, projector px/s²: the change of the pixel's
     /// patch velocity since the previous window, where that window was the one just before and
-    /// the change moves the coordinate by more than the noise (see [`motion`]); 0 elsewhere and
-    /// where the pixel is invalid.
+    /// the change moves the coordinate by more than the noise (see [`super::motion`]); 0
+    /// elsewhere and where the pixel is invalid.
     pub acceleration_px_per_s2: Vec<f32>,
     /// How long each stage took for this window.
     pub timings: StageTimings,
