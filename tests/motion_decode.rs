@@ -43,11 +43,12 @@ fn a_ten_millimetre_tremor_keeps_its_fingertips() {
     let coverage = motion.moving.coverage().unwrap();
     let gross = motion.moving.gross_rate().unwrap();
     let rms = motion.moving.rms_mm().unwrap();
-    // Over these four windows: 95.8 %, 0.86 % and 0.158 mm (the still window 67.7 %, 17.7 %
+    // Over these four windows: 97.2 %, 0.55 % and 0.160 mm (the still window 67.7 %, 17.7 %
     // and 0.33 mm; the first motion model, which pooled Gauss–Newton steps over a narrower
     // patch, 89.9 % and 1.9 %, failing both bounds; before the acceleration was taken, an
-    // RMS of 0.185 mm, failing the 0.17). The sweep's 13 windows: docs/accuracy.md.
-    assert!(coverage >= 0.93, "coverage {coverage}");
+    // RMS of 0.185 mm, failing the 0.17; before the recent past settled the rounding
+    // margin, 95.8 %, failing the coverage bound). The sweep's 13 windows: docs/accuracy.md.
+    assert!(coverage >= 0.965, "coverage {coverage}");
     assert!(gross <= 0.015, "gross {gross}");
     assert!(rms <= 0.17, "RMS {rms}");
     assert!(still.moving.coverage().unwrap() < 0.8);
@@ -68,13 +69,14 @@ fn a_swaying_hand_is_measured_despite_its_changing_shading() {
     let (still, motion) = both(&rig(5.0, 4.0, 3.0));
     let coverage = motion.moving.coverage().unwrap();
     let gross = motion.moving.gross_rate().unwrap();
-    // Over these four windows: 87.3 % and 0.72 % (the still window 71.7 % and 11.8 %). The
+    // Over these four windows: 90.4 % and 0.79 % (the still window 71.7 % and 11.8 %). The
     // velocity changes sign across a rolling finger, which a patch's one velocity cannot
     // follow: this is the model's weakest case (docs/accuracy.md). Before the temporal order
     // check, 90.4 % and 1.9 %: it refuses wrong fringe orders that lasted a window or two, and
-    // the right ones that follow a longer-lived wrong one, a trade this bound records (it was
-    // 88 %, the gross bound 2.5 %; the code before the check fails the gross bound now).
-    assert!(coverage >= 0.85, "coverage {coverage}");
+    // the right ones that follow a longer-lived wrong one (87.3 % and 0.72 %). The pixels'
+    // own recent past then settled most of the rounding margin, which sway fills (90.4 % and
+    // 0.79 %; the code before fails the coverage bound).
+    assert!(coverage >= 0.89, "coverage {coverage}");
     assert!(gross <= 0.012, "gross {gross}");
     assert!(still.moving.gross_rate().unwrap() > 0.08);
 }
@@ -262,7 +264,8 @@ fn a_swaying_fingertip_is_missing_rather_than_a_fringe_off() {
     // the other checks had rejected: tracked 30.1 mm off, and valid. The temporal order check
     // refuses it. Measured over windows 2..16: before it, moving skin 86.9 % valid with 2.77 %
     // more than 2 mm off and the tip's worst sample 30.1 mm off; with it, 83.2 %, 0.89 % and
-    // 0.28 mm (10 of 15 tip samples valid).
+    // 0.28 mm (10 of 15 tip samples valid); with the rounding margin settled by each pixel's
+    // recent past too, 89.0 %, 0.76 % and 0.78 mm (13 of 15; before it, 10 fail the bound).
     use nalgebra::Vector3;
     use tremorscan::decode::{SlidingDecoder, WindowOutcome};
     use tremorscan::rig::scene::{Material, Scene};
@@ -275,7 +278,7 @@ fn a_swaying_fingertip_is_missing_rather_than_a_fringe_off() {
     let gross = accuracy.moving.gross_rate().unwrap();
     let coverage = accuracy.moving.coverage().unwrap();
     assert!(gross <= 0.015, "gross {gross}");
-    assert!(coverage >= 0.8, "coverage {coverage}");
+    assert!(coverage >= 0.87, "coverage {coverage}");
 
     let config = &rig.config;
     let scene = Scene::new(config.scene.clone());
@@ -307,8 +310,33 @@ fn a_swaying_fingertip_is_missing_rather_than_a_fringe_off() {
         }
     }
     eprintln!("tip errors, mm: {errors_mm:?}");
-    assert!(errors_mm.len() >= 8, "{} of 15 valid", errors_mm.len());
+    assert!(errors_mm.len() >= 12, "{} of 15 valid", errors_mm.len());
     for e in &errors_mm {
         assert!(e.abs() < 2.0, "a tip sample {e} mm off");
     }
+}
+
+#[test]
+fn a_swaying_fingertip_trembling_five_millimetres_gets_the_clinical_figures() {
+    // With sway the coarse estimate of moving skin lands in the rounding margin far more often
+    // than without (at 10 mm, 9.2 % of the moving skin against 3.5 %), though the pixel's own
+    // coordinate a window earlier, moved on by the patch's velocity, tells the fringe order
+    // (docs/accuracy.md). Measured over 3 s: before the recent past settled those pixels, 91.4 %
+    // of the tip's samples valid (the target is 95 %); with it, 99.7 %, 11.56 mm
+    // peak-to-peak against 11.71, bin 2 as true.
+    let rig = rig(5.0, 4.0, 3.0);
+    let tip = fingertip_tremor(&rig, DecodeParams::default(), 363).unwrap();
+    let truth = tip.truth.as_ref().unwrap();
+    let measured = tip.measured.as_ref().unwrap();
+    eprintln!("measured: {measured:?}\ntruth: {truth:?}");
+    assert!(
+        measured.valid_fraction >= 0.95,
+        "{}",
+        measured.valid_fraction
+    );
+    let df = tip.frequency_error_hz().unwrap();
+    assert!(df.abs() < 0.05, "frequency off by {df} Hz");
+    let dp = tip.peak_to_peak_error().unwrap();
+    assert!(dp.abs() < 0.03, "peak-to-peak off by {:.2} %", 100.0 * dp);
+    assert_eq!(measured.updrs_amplitude_bin, truth.updrs_amplitude_bin);
 }

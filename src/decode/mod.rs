@@ -414,6 +414,17 @@ pub(crate) fn finish_window(
     let smoothed = Instant::now();
     unwrap::unwrap_and_combine(solver, params, chebyshev_n, out);
     if let Some(basis) = motion_basis {
+        // A pixel's own recent past settles an uncertain rounding; the references are those
+        // of the temporal check below, so only with it.
+        if params.unwrap == UnwrapMethod::ChebyshevRobust && params.check_order_jumps {
+            let cps = unwrap::CpsMaps::new(&solver.frequency_rad_per_px, &solver.noise_gain);
+            temporal::settle_margin_from_recent(
+                out,
+                &cps,
+                params.max_rounding_residual,
+                basis.frame_interval_s,
+            );
+        }
         motion::remove_acceleration_shift(basis, out);
     }
     if params.unwrap == UnwrapMethod::ChebyshevRobust && params.check_order_jumps {

@@ -136,7 +136,6 @@ fn chebyshev_row(c: &Consts<'_>, row: Row<'_>) {
     );
     // New reason bits as f32 sums of distinct powers of two, merged into the byte flags last.
     let added = &mut row.scratch[..w];
-    let (f0, fa, fb) = (c.f[0], c.f[1], c.f[2]);
     let inv_f1 = 1.0 / c.f1;
     let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
     // The coarse coordinate first, in a loop of its own so the main loop has no calls.
@@ -153,20 +152,73 @@ fn chebyshev_row(c: &Consts<'_>, row: Row<'_>) {
             added[x] = 0.0;
         }
     }
-    // Inverse-variance weights are (a·f/g)², with g the solver's noise gain of the slot.
-    let (k0, k1, k2) = (f0 / c.gain[0], fa / c.gain[1], fb / c.gain[2]);
-    let (k0, k1, k2) = (k0 * k0, k1 * k1, k2 * k2);
+    let cps = CpsMaps::new(c.f, c.gain);
     let inv_noise2 = 1.0 / (p.camera_noise_gray * p.camera_noise_gray);
     for x in 0..w {
-        let xc = coarse[x];
-        let (x0, r0) = unwrap_one(xc, ph0[x], f0);
-        let (x1, r1) = unwrap_one(xc, ph1[x], fa);
-        let (x2, r2) = unwrap_one(xc, ph2[x], fb);
-        let (w0, w1, w2) = (
-            k0 * am0[x] * am0[x],
-            k1 * am1[x] * am1[x],
-            k2 * am2[x] * am2[x],
+        let u = cps.unwrap(
+            coarse[x],
+            [ph0[x], ph1[x], ph2[x]],
+            [am0[x], am1[x], am2[x]],
         );
+        added[x] += bit(u.residual > p.max_rounding_residual, invalid::UNWRAP_MARGIN)
+            + bit(
+                u.weighted_spread * inv_noise2 > p.max_disagreement_chi2,
+                invalid::DISAGREEMENT,
+            )
+            + bit(
+                !(-0.5..c.x_max).contains(&u.combined),
+                invalid::OUT_OF_RANGE,
+            );
+        coord[x] = u.combined;
+    }
+    for x in 0..w {
+        let reason = flags[x] | whole_to_byte(added[x]);
+        flags[x] = reason;
+        if reason != 0 {
+            coord[x] = f32::NAN;
+        }
+    }
+}
+
+/// Eq. 8 for the three CPS frequencies and their inverse-variance combination.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct CpsMaps {
+    f: [f32; 3],
+    /// `(f/g)²` per slot: times the amplitude squared, the map's inverse variance over the
+    /// camera noise variance (g: the solver's noise gain of the slot).
+    weight: [f32; 3],
+}
+
+/// One pixel's three maps unwrapped from one coarse coordinate.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Unwrapped {
+    /// The maps combined by inverse variance, projector px.
+    pub combined: f32,
+    /// The largest rounding residual of the three, `[0, 0.5]`.
+    pub residual: f32,
+    /// `Σ w_i·(x_i − x̄)²` before division by the camera noise variance: times `1/σ²` it is
+    /// the disagreement's χ².
+    pub weighted_spread: f32,
+}
+
+impl CpsMaps {
+    /// The maps of `f` (rad per projector px, slots n, n−1, n−2) with noise gains `gain`.
+    pub(crate) fn new(f: &[f32], gain: &[f32]) -> Self {
+        let f = [f[0], f[1], f[2]];
+        let weight = [0, 1, 2].map(|i| (f[i] / gain[i]).powi(2));
+        Self { f, weight }
+    }
+
+    /// Unwraps the wrapped `phase` of each slot around the coarse coordinate `xc` and combines
+    /// them, weighting each map by `(a·f/g)²`.
+    #[inline(always)]
+    pub(crate) fn unwrap(&self, xc: f32, phase: [f32; 3], amplitude: [f32; 3]) -> Unwrapped {
+        let (x0, r0) = unwrap_one(xc, phase[0], self.f[0]);
+        let (x1, r1) = unwrap_one(xc, phase[1], self.f[1]);
+        let (x2, r2) = unwrap_one(xc, phase[2], self.f[2]);
+        let w0 = self.weight[0] * amplitude[0] * amplitude[0];
+        let w1 = self.weight[1] * amplitude[1] * amplitude[1];
+        let w2 = self.weight[2] * amplitude[2] * amplitude[2];
         let total = w0 + w1 + w2;
         // A zero total only happens on pixels already flagged for low amplitude.
         let combined = if total > 0.0 {
@@ -175,19 +227,10 @@ fn chebyshev_row(c: &Consts<'_>, row: Row<'_>) {
             x0
         };
         let (d0, d1, d2) = (x0 - combined, x1 - combined, x2 - combined);
-        let chi2 = (w0 * d0 * d0 + w1 * d1 * d1 + w2 * d2 * d2) * inv_noise2;
-        added[x] += bit(
-            r0.max(r1).max(r2) > p.max_rounding_residual,
-            invalid::UNWRAP_MARGIN,
-        ) + bit(chi2 > p.max_disagreement_chi2, invalid::DISAGREEMENT)
-            + bit(!(-0.5..c.x_max).contains(&combined), invalid::OUT_OF_RANGE);
-        coord[x] = combined;
-    }
-    for x in 0..w {
-        let reason = flags[x] | whole_to_byte(added[x]);
-        flags[x] = reason;
-        if reason != 0 {
-            coord[x] = f32::NAN;
+        Unwrapped {
+            combined,
+            residual: r0.max(r1).max(r2),
+            weighted_spread: w0 * d0 * d0 + w1 * d1 * d1 + w2 * d2 * d2,
         }
     }
 }
