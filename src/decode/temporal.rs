@@ -55,8 +55,9 @@
 //! close to the check's tolerance. Measured with `tremorscan sweep --motion`'s protocol (moving
 //! skin, valid / more than 2 mm off), standing → carried: 10 mm 97.57 / 0.356 % → 97.57 /
 //! 0.338 %, 20 mm 77.31 / 1.57 % → 77.21 / 1.38 %, 10 mm with sway 90.63 / 0.79 % → 90.64 /
-//! 0.77 %. Most of what stays wrong has no reference at all: at 10 mm, 848 of the 1030 wrong
-//! pixels were invalid for the two windows before (232 of them in the stream's first window).
+//! 0.77 %. Most of what stays wrong has no reference at all: at 10 mm, before this change, 848
+//! of the 1030 wrong pixels were invalid for the two windows before (232 of them in the
+//! stream's first window, which has no references).
 //! Keeping carried references longer trades coverage for fewer wrong orders, since a lasting
 //! wrong reference then refuses the right order for longer: 3, 4 and 6 windows gave 97.06 /
 //! 0.287 % (4) and 96.52 / 0.296 % (6) at 10 mm, 89.85 / 0.77 % (3) and 89.40 / 0.70 % (4)
@@ -76,8 +77,8 @@ pub const MAX_AGE_WINDOWS: u8 = 2;
 /// Marks the pixels whose coordinate moved by a whole number of fringe periods (`period_px`),
 /// give or take `max_step_px` per window of age, from their reference carried forward by the
 /// patch velocity, then makes every valid pixel its own reference and carries the others'
-/// forward. Only a window one frame interval (`frame_interval_s`, within a
-/// quarter of one) after the last window this check ran on is tested.
+/// forward. Only a window one frame interval (`frame_interval_s`, within a quarter of one)
+/// after the last window this check ran on is tested.
 pub(crate) fn flag_temporal_jumps(
     out: &mut DecodeOutput,
     period_px: f32,
@@ -117,9 +118,8 @@ pub(crate) fn flag_temporal_jumps(
 /// the spatial coarse coordinate lies between 0.3 and 0.5 of a period from the fine solution,
 /// so its fringe order is uncertain, and the reference coordinate (valid at most
 /// [`MAX_AGE_WINDOWS`] windows ago, carried forward since), moved on by the patch's velocity
-/// over this frame interval,
-/// unwraps to the same order at every frequency well inside the margin (`max_residual`). Two
-/// independent estimates then pick the same order. Runs before [`flag_temporal_jumps`], on the
+/// over this frame interval, unwraps to the same order at every frequency well inside the
+/// margin (`max_residual`). Two independent estimates then pick the same order. Runs before [`flag_temporal_jumps`], on the
 /// same references, and only on a window one frame interval after the last one checked.
 pub(crate) fn settle_margin_from_recent(
     out: &mut DecodeOutput,
