@@ -27,6 +27,7 @@ mod consistency;
 pub mod fastmath;
 pub mod motion;
 mod motion_basis;
+mod motion_correct;
 mod motion_evidence;
 pub mod motion_noise;
 mod output;

@@ -72,23 +72,21 @@
 //! Only CPS-RGB windows (three frames, factored solve) take the model; other sequences decode
 //! as before.
 
-use super::fastmath::{sin_cos_phase, sin_cos_small, whole_to_byte};
-use super::motion_basis::apply;
 pub use super::motion_basis::{MotionBasis, MAX_TURN_RAD};
+use super::motion_correct::{correct_row, RowPlanes, Step};
 pub(crate) use super::motion_evidence::{chebyshev3, evidence, gain2, inconsistent};
-use super::motion_evidence::{chebyshev3_of, evidence_with};
 use super::smooth::{smooth_planes, Planes};
-use super::{invalid, DecodeOutput, DecodeParams, WindowSolver};
+use super::{DecodeOutput, DecodeParams, WindowSolver};
 use rayon::prelude::*;
 
 /// Smallest `det(M + κN)` accepted: below it the correction amplifies the noise by more than
 /// 2.5×.
-const MIN_DET: f32 = 0.4;
+pub(super) const MIN_DET: f32 = 0.4;
 /// χ² (two degrees of freedom) of a patch's `(u, κ)` against rest above which the motion is
 /// taken as real: exceeded by chance with probability 10⁻⁶. At 10⁻⁴ (18.4) a still hand at
 /// σ = 2 kept 55 pixels with motion and 12 wrong fringe orders; at 10⁻⁶ none, for 0.1 % of the
 /// moving skin at a 10 mm tremor.
-const MOTION_SIGNIFICANCE: f32 = 27.6;
+pub(super) const MOTION_SIGNIFICANCE: f32 = 27.6;
 /// The prior of a patch's velocity and brightness change before its evidence: zero, with
 /// these standard deviations (px/s and 1/s; a 20 mm tremor at 6 Hz peaks near 750 px/s on the
 /// paper's rig, a finger's side swaying 4 mm near 40/s). A patch with little evidence (the
@@ -103,7 +101,7 @@ const PRIOR_BRIGHTNESS_RATE_PER_S: f32 = 20.0;
 /// the change is far below what two independent estimates would have, and at a 10 mm tremor a
 /// χ² test at 10⁻⁶ kept the acceleration at 9 % of the moving skin, removing a fifth of the
 /// bias instead of nine tenths.)
-const MIN_ACCELERATION_SHIFT_PX: f32 = 0.05;
+pub(super) const MIN_ACCELERATION_SHIFT_PX: f32 = 0.05;
 /// The fastest oscillation whose acceleration the model takes, Hz: a change of velocity
 /// between windows larger than a sinusoid at this frequency and the model's largest velocity
 /// can make is not motion of one surface (at an outline the pixel saw another surface in the
@@ -209,9 +207,9 @@ pub(crate) fn motion_step(
                 correct_row(
                     &step,
                     RowPlanes {
-                        phase,
-                        amp,
-                        colour,
+                        phase: split3(phase, w),
+                        amp: split3(amp, w),
+                        offset: split3(colour, w),
                         uu: re,
                         uk: im,
                         kk: support,
@@ -241,255 +239,6 @@ pub(crate) enum StepKind {
     Refine,
 }
 
-/// What one Gauss–Newton step of [`correct_row`] needs.
-struct Step<'a> {
-    basis: &'a MotionBasis,
-    gain2: (f32, f32, f32),
-    /// χ² limit times the noise variance.
-    limit: f32,
-    min_amplitude: f32,
-    kind: StepKind,
-    /// The priors' information in the units of the evidence (`σ²/sd²`: the evidence is
-    /// weighted by `1/var(e)` over the camera noise variance).
-    prior_u: f32,
-    prior_k: f32,
-    /// `1/σ²` of the camera noise.
-    inv_noise2: f32,
-    /// Write the corrected unit phasor and reasons (else the next step's evidence).
-    last: bool,
-    /// `1/Δt` to the previous window with patch velocities (0: none, no acceleration).
-    inv_since: f32,
-    /// The largest velocity change over that Δt taken as acceleration, px/s.
-    max_velocity_change: f32,
-    /// The shift of the window's mean coordinate per unit of velocity change, s.
-    shift_per_velocity_change: f32,
-}
-
-/// One row of every plane a step reads and writes. On the last step `uu`, `uk` and `kk` (the
-/// unit phasor's planes) receive the unit phasor and the support.
-struct RowPlanes<'a> {
-    phase: &'a mut [f32],
-    amp: &'a mut [f32],
-    colour: &'a mut [f32],
-    uu: &'a mut [f32],
-    uk: &'a mut [f32],
-    kk: &'a mut [f32],
-    ue: &'a mut [f32],
-    ke: &'a mut [f32],
-    count: &'a mut [f32],
-    flags: &'a mut [u8],
-    velocity: &'a mut [f32],
-    brightness: &'a mut [f32],
-    acceleration: &'a mut [f32],
-    /// The previous window's patch velocities, replaced by this window's on the last step.
-    patch_velocity: &'a mut [f32],
-    /// Whether the previous window's patch velocity was significant, replaced likewise.
-    patch_moving: &'a mut [u8],
-}
-
-/// The first `w` values of the three planes of a row-planar row of `3·w` values.
-#[inline(always)]
-fn split3(row: &mut [f32], w: usize) -> [&mut [f32]; 3] {
-    let (a, rest) = row.split_at_mut(w);
-    let (b, c) = rest.split_at_mut(w);
-    [a, b, &mut c[..w]]
-}
-
-#[multiversion::multiversion(targets(
-    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
-    "x86_64+avx2+fma",
-    "x86_64+sse4.1"
-))]
-fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
-    // The step's kind and whether it is the last are fixed for the row: each combination is
-    // compiled as its own loop, without branches on them per pixel.
-    match (step.kind == StepKind::Refine, step.last) {
-        (false, false) => correct_row_as::<false, false>(step, row),
-        (false, true) => correct_row_as::<false, true>(step, row),
-        (true, false) => correct_row_as::<true, false>(step, row),
-        (true, true) => correct_row_as::<true, true>(step, row),
-    }
-}
-
-/// [`correct_row`] for a step that refines (`REFINE`, else from rest) and is the last (`LAST`).
-#[inline(always)]
-fn correct_row_as<const REFINE: bool, const LAST: bool>(step: &Step<'_>, row: RowPlanes<'_>) {
-    let basis = step.basis;
-    let w = row.flags.len();
-    let [ph0, ph1, ph2] = split3(row.phase, w);
-    let [am0, am1, am2] = split3(row.amp, w);
-    let [co0, co1, co2] = split3(row.colour, w);
-    // Every plane cut to the row's width up front, so that indexing by `x` needs no checks.
-    let (uu, uk, kk) = (&mut row.uu[..w], &mut row.uk[..w], &mut row.kk[..w]);
-    let (ue, ke, count) = (&mut row.ue[..w], &mut row.ke[..w], &mut row.count[..w]);
-    let (flags, velocity) = (&mut row.flags[..w], &mut row.velocity[..w]);
-    let brightness = &mut row.brightness[..w];
-    let acceleration = &mut row.acceleration[..w];
-    let patch_velocity = &mut row.patch_velocity[..w];
-    let patch_moving = &mut row.patch_moving[..w];
-    let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
-    let kappa_max = basis.max_brightness_rate;
-    for x in 0..w {
-        // The patch's step: the ridge-regularised weighted least squares of e = D_u·u + D_κ·κ.
-        let (a, b, c) = (uu[x] + step.prior_u, uk[x], kk[x] + step.prior_k);
-        let det = a * c - b * b;
-        let (ru, rk) = (ue[x], ke[x]);
-        let solvable = (det > 0.0) & (count[x] > 0.0);
-        let (u0, k0) = if REFINE {
-            (velocity[x], brightness[x])
-        } else {
-            (0.0, 0.0)
-        };
-        // The evidence is absolute: its solution is the patch's (u, κ), not a step.
-        let (u_new, k_new) = if solvable {
-            ((c * ru - b * rk) / det, (a * rk - b * ru) / det)
-        } else {
-            (u0, k0)
-        };
-        // Kept where the model is defined, so that the next step's slopes are the model's.
-        let u = u_new.clamp(-basis.max_velocity, basis.max_velocity);
-        let kappa = k_new.clamp(-kappa_max, kappa_max);
-        let bright_ok = k_new.abs() <= kappa_max;
-        let phases = [ph0[x], ph1[x], ph2[x]];
-        let amps = [am0[x], am1[x], am2[x]];
-        let offsets = [co0[x], co1[x], co2[x]];
-        let lit = basis.lit_offsets(offsets);
-        // At every step the motion stays only where the patch's evidence shows it: its (u, κ)
-        // differ from rest by more than the noise (a χ² of the estimate with two degrees of
-        // freedom above `MOTION_SIGNIFICANCE`). Elsewhere (still surfaces, and the ends of the
-        // projector's range, where the residual is blind to motion but the unit phase is not)
-        // the still solution is kept, and the next step starts from rest. Testing only on the
-        // last step let a first step's noise-driven correction pool into a significant-looking
-        // second estimate: a still hand at σ = 2 then got 0.56 % wrong fringe orders.
-        let significance = (a * u * u + 2.0 * b * u * kappa + c * kappa * kappa) * step.inv_noise2;
-        let moving = significance > MOTION_SIGNIFICANCE;
-        if LAST {
-            // The acceleration: the change of the patch's velocity since the previous window,
-            // on a surface that moves now or moved then, where it shifts the coordinate by more
-            // than the noise and one surface can make it ([`remove_acceleration_shift`]).
-            let du = u - patch_velocity[x];
-            let accelerating = solvable
-                & (moving | (patch_moving[x] != 0))
-                & (step.inv_since > 0.0)
-                & (du.abs() <= step.max_velocity_change)
-                & (du.abs() * step.shift_per_velocity_change >= MIN_ACCELERATION_SHIFT_PX);
-            acceleration[x] = if accelerating {
-                du * step.inv_since
-            } else {
-                0.0
-            };
-            patch_velocity[x] = if solvable { u } else { f32::NAN };
-            patch_moving[x] = u8::from(moving);
-        }
-        let (u, kappa) = if moving { (u, kappa) } else { (0.0, 0.0) };
-        // Undo the previous correction, if any; correct only where the patch moves.
-        let corrected_before = REFINE & ((u0 != 0.0) | (k0 != 0.0));
-        let mut within = bright_ok | !moving;
-        let mut worst_det = if moving { f32::INFINITY } else { 1.0 };
-        let (vx, vy) = basis.v;
-        let mut dz = [[(0.0, 0.0); 2]; 3];
-        let mut still = [(0.0, 0.0); 3];
-        // A plain loop: an `array::from_fn` closure here stayed out of line (perf: 55 %).
-        let mut z = [(0.0, 0.0); 3];
-        for slot in 0..3 {
-            let (s, c) = sin_cos_phase(phases[slot]);
-            let mut seen = (amps[slot] * c, amps[slot] * s);
-            let f = basis.f_rad_per_px[slot];
-            if corrected_before {
-                // What the still solve saw: the previous correction undone.
-                let (x, y) = apply(&basis.response(f * u0, k0).0, seen);
-                seen = (x + k0 * lit[slot] * vx, y + k0 * lit[slot] * vy);
-            }
-            still[slot] = seen;
-            z[slot] = seen;
-            if moving {
-                let model = basis.linearised(f * u, kappa);
-                within &= model.within;
-                worst_det = worst_det.min(model.det);
-                let lit_term = (kappa * lit[slot] * vx, kappa * lit[slot] * vy);
-                let zs = apply(&model.inverse, (seen.0 - lit_term.0, seen.1 - lit_term.1));
-                dz[slot] = model.slopes(zs, f, lit[slot], basis.v);
-                z[slot] = zs;
-            }
-        }
-        velocity[x] = u;
-        brightness[x] = kappa;
-        // A pixel the step leaves as it was (still, and not corrected before: most of a scene)
-        // keeps its phases and amplitudes, without recomputing them.
-        let changed = moving | corrected_before;
-        let cheb = if changed {
-            let cheb = chebyshev3(z, step.gain2);
-            ph0[x] = cheb.phase[0];
-            ph1[x] = cheb.phase[1];
-            ph2[x] = cheb.phase[2];
-            am0[x] = cheb.amplitude[0];
-            am1[x] = cheb.amplitude[1];
-            am2[x] = cheb.amplitude[2];
-            cheb
-        } else {
-            chebyshev3_of(z, phases, amps, step.gain2)
-        };
-        if !LAST {
-            // The next step's evidence, from the corrected phasors. The flags still hold stage
-            // 1's signal reasons alone.
-            let keep = if flags[x] == 0 { 1.0 } else { 0.0 };
-            let dz = if moving {
-                dz
-            } else {
-                basis.slopes_at_rest(still, lit)
-            };
-            let ev = evidence_with(z, dz, &cheb, keep, (u, kappa));
-            uu[x] = ev.uu;
-            uk[x] = ev.uk;
-            kk[x] = ev.kk;
-            ue[x] = ev.ue;
-            ke[x] = ev.ke;
-            count[x] = keep;
-            continue;
-        }
-        // The offset image without the fringe that the motion leaked into it.
-        let mut leak = [0.0; 3];
-        for slot in (0..3).filter(|_| moving) {
-            let g = basis.f_rad_per_px[slot] * u;
-            let mut r = 0.0;
-            for k in 0..3 {
-                let (s, cs) =
-                    sin_cos_small((g * basis.tau_s[k]).clamp(-MAX_TURN_RAD, MAX_TURN_RAD));
-                let (dx, dy) = basis.d[k];
-                let scale = 1.0 + kappa * basis.tau_s[k];
-                // d_kᵀ·R(gτ_k)·z, scaled by the frame's brightness, less the still d_kᵀ·z
-                // (which the offset row cancels).
-                let turned = (dx * cs + dy * s, -dx * s + dy * cs);
-                r += basis.offset_row[k]
-                    * (scale * cross_dot(turned, z[slot]) - cross_dot(basis.d[k], z[slot]));
-            }
-            leak[slot] = r;
-        }
-        co0[x] = offsets[0] - dot3(basis.mix_of_slot_row(0), leak);
-        co1[x] = offsets[1] - dot3(basis.mix_of_slot_row(1), leak);
-        co2[x] = offsets[2] - dot3(basis.mix_of_slot_row(2), leak);
-        let min_amp = cheb.amplitude[0]
-            .min(cheb.amplitude[1])
-            .min(cheb.amplitude[2]);
-        let low = min_amp.is_nan() | (min_amp < step.min_amplitude);
-        let unexplained = !within | (worst_det < MIN_DET);
-        let saturated = flags[x] & invalid::SATURATED != 0;
-        let reason = bit(low, invalid::LOW_AMPLITUDE)
-            + bit(saturated, invalid::SATURATED)
-            + bit(inconsistent(&cheb, step.limit), invalid::DISAGREEMENT)
-            + bit(unexplained, invalid::MOTION);
-        let keep = if reason == 0.0 { 1.0 } else { 0.0 };
-        // Only a valid pixel's motion is reported.
-        velocity[x] = u * keep;
-        brightness[x] = kappa * keep;
-        acceleration[x] *= keep;
-        kk[x] = keep;
-        uu[x] = cheb.unit.0 * keep;
-        uk[x] = cheb.unit.1 * keep;
-        flags[x] = whole_to_byte(reason);
-    }
-}
-
 /// Moves each valid pixel's coordinate from the window's mean to its centre time.
 ///
 /// Under an acceleration `a` the coordinate is `x_c + u·τ + a·τ²/2`, and the three-step solve
@@ -510,13 +259,9 @@ pub(crate) fn remove_acceleration_shift(basis: &MotionBasis, out: &mut DecodeOut
         .for_each(|(x, a)| *x -= a * half_mean_tau2);
 }
 
-/// `aᵀ·b` of two 2-vectors.
-#[inline(always)]
-fn cross_dot(a: (f32, f32), b: (f32, f32)) -> f32 {
-    a.0 * b.0 + a.1 * b.1
-}
-
-#[inline(always)]
-fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+/// The first `w` values of each of the three planes of a row-planar row of `3·w` values.
+fn split3(row: &mut [f32], w: usize) -> [&mut [f32]; 3] {
+    let (a, rest) = row.split_at_mut(w);
+    let (b, c) = rest.split_at_mut(w);
+    [&mut a[..w], &mut b[..w], &mut c[..w]]
 }

@@ -1,0 +1,443 @@
+//! The per-pixel kernel of one Gauss–Newton step of the motion model ([`super::motion`]): the
+//! patch's `(u, κ)` from its summed evidence, the significance test, the acceleration
+//! bookkeeping, and the correction of the pixel's phasors.
+//!
+//! **Two passes per block of [`BLOCK`] pixels.** Most of a scene is still: in the rig's
+//! default window (a 2 mm tremor, 640×400) each step corrects 1.6 % of the pixels. A still
+//! pixel that the step before left uncorrected needs no model at all: its phasors stay the
+//! still solution, and the step only writes its evidence at rest (or, on the last step, its
+//! unit phasor and reasons). The first pass does that for every pixel of the block,
+//! branch-free, so that it vectorises as stage 1 does; it solves each pixel's patch system,
+//! takes the acceleration, and marks on the stack the pixels that move or were corrected
+//! before, leaving their planes as they were. The second pass runs the full model, scalar, on
+//! the marked pixels only. The two passes write the same values as the single per-pixel loop
+//! they replaced, bit for bit (the arithmetic and its order are unchanged; checked by hashing
+//! every output plane of ten consecutive windows of three trembling hands, two swaying).
+//! Before, that loop branched per pixel on the motion, none of it vectorised, and it took
+//! about half of a motion window's time; `f32::clamp`'s check of its bounds alone also kept
+//! the first pass scalar, hence [`clamp`].
+
+use super::fastmath::{sin_cos_phase, sin_cos_small, whole_to_byte};
+use super::invalid;
+use super::motion::{StepKind, MIN_ACCELERATION_SHIFT_PX, MIN_DET, MOTION_SIGNIFICANCE};
+use super::motion_basis::{apply, MotionBasis, MAX_TURN_RAD};
+use super::motion_evidence::{chebyshev3, chebyshev3_of, evidence_with, inconsistent};
+
+/// Pixels per block: the marks of a block sit on the stack between its two passes.
+const BLOCK: usize = 64;
+
+/// What one Gauss–Newton step of [`correct_row`] needs.
+pub(super) struct Step<'a> {
+    pub(super) basis: &'a MotionBasis,
+    pub(super) gain2: (f32, f32, f32),
+    /// χ² limit times the noise variance.
+    pub(super) limit: f32,
+    pub(super) min_amplitude: f32,
+    pub(super) kind: StepKind,
+    /// The priors' information in the units of the evidence (`σ²/sd²`: the evidence is
+    /// weighted by `1/var(e)` over the camera noise variance).
+    pub(super) prior_u: f32,
+    pub(super) prior_k: f32,
+    /// `1/σ²` of the camera noise.
+    pub(super) inv_noise2: f32,
+    /// Write the corrected unit phasor and reasons (else the next step's evidence).
+    pub(super) last: bool,
+    /// `1/Δt` to the previous window with patch velocities (0: none, no acceleration).
+    pub(super) inv_since: f32,
+    /// The largest velocity change over that Δt taken as acceleration, px/s.
+    pub(super) max_velocity_change: f32,
+    /// The shift of the window's mean coordinate per unit of velocity change, s.
+    pub(super) shift_per_velocity_change: f32,
+}
+
+/// One row (or one block of a row) of every plane a step reads and writes; every slice has the
+/// same length. On the last step `uu`, `uk` and `kk` (the unit phasor's planes) receive the
+/// unit phasor and the support.
+pub(super) struct RowPlanes<'a> {
+    pub(super) phase: [&'a mut [f32]; 3],
+    pub(super) amp: [&'a mut [f32]; 3],
+    pub(super) offset: [&'a mut [f32]; 3],
+    pub(super) uu: &'a mut [f32],
+    pub(super) uk: &'a mut [f32],
+    pub(super) kk: &'a mut [f32],
+    pub(super) ue: &'a mut [f32],
+    pub(super) ke: &'a mut [f32],
+    pub(super) count: &'a mut [f32],
+    pub(super) flags: &'a mut [u8],
+    pub(super) velocity: &'a mut [f32],
+    pub(super) brightness: &'a mut [f32],
+    pub(super) acceleration: &'a mut [f32],
+    /// The previous window's patch velocities, replaced by this window's on the last step.
+    pub(super) patch_velocity: &'a mut [f32],
+    /// Whether the previous window's patch velocity was significant, replaced likewise.
+    pub(super) patch_moving: &'a mut [u8],
+}
+
+impl RowPlanes<'_> {
+    /// Pixels `start..end` of every plane.
+    fn block(&mut self, start: usize, end: usize) -> RowPlanes<'_> {
+        let [p0, p1, p2] = &mut self.phase;
+        let [a0, a1, a2] = &mut self.amp;
+        let [o0, o1, o2] = &mut self.offset;
+        RowPlanes {
+            phase: [
+                &mut p0[start..end],
+                &mut p1[start..end],
+                &mut p2[start..end],
+            ],
+            amp: [
+                &mut a0[start..end],
+                &mut a1[start..end],
+                &mut a2[start..end],
+            ],
+            offset: [
+                &mut o0[start..end],
+                &mut o1[start..end],
+                &mut o2[start..end],
+            ],
+            uu: &mut self.uu[start..end],
+            uk: &mut self.uk[start..end],
+            kk: &mut self.kk[start..end],
+            ue: &mut self.ue[start..end],
+            ke: &mut self.ke[start..end],
+            count: &mut self.count[start..end],
+            flags: &mut self.flags[start..end],
+            velocity: &mut self.velocity[start..end],
+            brightness: &mut self.brightness[start..end],
+            acceleration: &mut self.acceleration[start..end],
+            patch_velocity: &mut self.patch_velocity[start..end],
+            patch_moving: &mut self.patch_moving[start..end],
+        }
+    }
+}
+
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
+pub(super) fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
+    // The step's kind and whether it is the last are fixed for the row: each combination is
+    // compiled as its own loop, without branches on them per pixel.
+    match (step.kind == StepKind::Refine, step.last) {
+        (false, false) => correct_row_as::<false, false>(step, row),
+        (false, true) => correct_row_as::<false, true>(step, row),
+        (true, false) => correct_row_as::<true, false>(step, row),
+        (true, true) => correct_row_as::<true, true>(step, row),
+    }
+}
+
+/// [`correct_row`] for a step that refines (`REFINE`, else from rest) and is the last (`LAST`).
+#[inline(always)]
+fn correct_row_as<const REFINE: bool, const LAST: bool>(step: &Step<'_>, mut row: RowPlanes<'_>) {
+    let w = row.flags.len();
+    let mut start = 0;
+    while start < w {
+        let end = (start + BLOCK).min(w);
+        let mut block = row.block(start, end);
+        let mut marks = [0u8; BLOCK];
+        let marks = &mut marks[..end - start];
+        still_pass::<REFINE, LAST>(step, &mut block, marks);
+        for (x, _) in marks.iter().enumerate().filter(|(_, &m)| m != 0) {
+            correct_pixel::<REFINE, LAST>(step, &mut block, x);
+        }
+        start = end;
+    }
+}
+
+/// The patch's `(u, κ)`: the ridge-regularised weighted least squares of `e = D_u·u + D_κ·κ`
+/// over its summed evidence, clamped to where the model is defined, and whether it was
+/// solvable, within the brightness range and significant.
+#[derive(Clone, Copy)]
+struct PatchStep {
+    u: f32,
+    kappa: f32,
+    solvable: bool,
+    bright_ok: bool,
+    moving: bool,
+}
+
+#[inline(always)]
+fn patch_step<const REFINE: bool>(step: &Step<'_>, row: &RowPlanes<'_>, x: usize) -> PatchStep {
+    let basis = step.basis;
+    let (a, b, c) = (
+        row.uu[x] + step.prior_u,
+        row.uk[x],
+        row.kk[x] + step.prior_k,
+    );
+    let det = a * c - b * b;
+    let (ru, rk) = (row.ue[x], row.ke[x]);
+    let solvable = (det > 0.0) & (row.count[x] > 0.0);
+    let (u0, k0) = if REFINE {
+        (row.velocity[x], row.brightness[x])
+    } else {
+        (0.0, 0.0)
+    };
+    // The evidence is absolute: its solution is the patch's (u, κ), not a step.
+    let (u_new, k_new) = if solvable {
+        ((c * ru - b * rk) / det, (a * rk - b * ru) / det)
+    } else {
+        (u0, k0)
+    };
+    // Kept where the model is defined, so that the next step's slopes are the model's.
+    let kappa_max = basis.max_brightness_rate;
+    let u = clamp(u_new, basis.max_velocity);
+    let kappa = clamp(k_new, kappa_max);
+    // At every step the motion stays only where the patch's evidence shows it: its (u, κ)
+    // differ from rest by more than the noise (a χ² of the estimate with two degrees of
+    // freedom above `MOTION_SIGNIFICANCE`). Elsewhere (still surfaces, and the ends of the
+    // projector's range, where the residual is blind to motion but the unit phase is not) the
+    // still solution is kept, and the next step starts from rest. Testing only on the last
+    // step let a first step's noise-driven correction pool into a significant-looking second
+    // estimate: a still hand at σ = 2 then got 0.56 % wrong fringe orders.
+    let significance = (a * u * u + 2.0 * b * u * kappa + c * kappa * kappa) * step.inv_noise2;
+    PatchStep {
+        u,
+        kappa,
+        solvable,
+        bright_ok: k_new.abs() <= kappa_max,
+        moving: significance > MOTION_SIGNIFICANCE,
+    }
+}
+
+/// `v.clamp(-limit, limit)` (NaN stays NaN) without `clamp`'s check of its bounds, which
+/// kept the loop from vectorising.
+#[inline(always)]
+fn clamp(v: f32, limit: f32) -> f32 {
+    let v = if v < -limit { -limit } else { v };
+    if v > limit {
+        limit
+    } else {
+        v
+    }
+}
+
+#[inline(always)]
+fn bit(set: bool, value: u8) -> f32 {
+    if set {
+        f32::from(value)
+    } else {
+        0.0
+    }
+}
+
+/// The first pass over a block: every pixel's patch step and (on the last step) acceleration;
+/// the still pixels' outputs; `marks` set where the pixel moves or was corrected before, whose
+/// other planes stay as they were for [`correct_pixel`].
+#[inline(always)]
+fn still_pass<const REFINE: bool, const LAST: bool>(
+    step: &Step<'_>,
+    row: &mut RowPlanes<'_>,
+    marks: &mut [u8],
+) {
+    let basis = step.basis;
+    // Every plane cut to the block's length, so that indexing needs no checks and the loop
+    // vectorises.
+    let n = marks.len();
+    let mut row = row.block(0, n);
+    let row = &mut row;
+    for x in 0..n {
+        let p = patch_step::<REFINE>(step, row, x);
+        if LAST {
+            // The acceleration: the change of the patch's velocity since the previous window,
+            // on a surface that moves now or moved then, where it shifts the coordinate by more
+            // than the noise and one surface can make it ([`super::motion::remove_acceleration_shift`]).
+            let du = p.u - row.patch_velocity[x];
+            let accelerating = p.solvable
+                & (p.moving | (row.patch_moving[x] != 0))
+                & (step.inv_since > 0.0)
+                & (du.abs() <= step.max_velocity_change)
+                & (du.abs() * step.shift_per_velocity_change >= MIN_ACCELERATION_SHIFT_PX);
+            row.acceleration[x] = if accelerating {
+                du * step.inv_since
+            } else {
+                0.0
+            };
+            row.patch_velocity[x] = if p.solvable { p.u } else { f32::NAN };
+            row.patch_moving[x] = u8::from(p.moving);
+        }
+        let corrected_before = REFINE & ((row.velocity[x] != 0.0) | (row.brightness[x] != 0.0));
+        let full = p.moving | corrected_before;
+        marks[x] = u8::from(full);
+        // The still pixel: its phasors are the still solution.
+        let phases = [row.phase[0][x], row.phase[1][x], row.phase[2][x]];
+        let amps = [row.amp[0][x], row.amp[1][x], row.amp[2][x]];
+        let mut z = [(0.0, 0.0); 3];
+        for slot in 0..3 {
+            let (s, c) = sin_cos_phase(phases[slot]);
+            z[slot] = (amps[slot] * c, amps[slot] * s);
+        }
+        let cheb = chebyshev3_of(z, phases, amps, step.gain2);
+        let keep_if = |keep: f32, old: f32| if full { old } else { keep };
+        row.velocity[x] = keep_if(0.0, row.velocity[x]);
+        row.brightness[x] = keep_if(0.0, row.brightness[x]);
+        if LAST {
+            let min_amp = cheb.amplitude[0]
+                .min(cheb.amplitude[1])
+                .min(cheb.amplitude[2]);
+            let low = min_amp.is_nan() | (min_amp < step.min_amplitude);
+            let saturated = row.flags[x] & invalid::SATURATED != 0;
+            let reason = bit(low, invalid::LOW_AMPLITUDE)
+                + bit(saturated, invalid::SATURATED)
+                + bit(inconsistent(&cheb, step.limit), invalid::DISAGREEMENT);
+            let keep = if reason == 0.0 { 1.0 } else { 0.0 };
+            row.acceleration[x] = keep_if(row.acceleration[x] * keep, row.acceleration[x]);
+            row.kk[x] = keep_if(keep, row.kk[x]);
+            row.uu[x] = keep_if(cheb.unit.0 * keep, row.uu[x]);
+            row.uk[x] = keep_if(cheb.unit.1 * keep, row.uk[x]);
+            row.flags[x] = if full {
+                row.flags[x]
+            } else {
+                whole_to_byte(reason)
+            };
+        } else {
+            // The next step's evidence, at rest. The flags still hold stage 1's signal reasons
+            // alone.
+            let offsets = [row.offset[0][x], row.offset[1][x], row.offset[2][x]];
+            let keep = if row.flags[x] == 0 { 1.0 } else { 0.0 };
+            let dz = basis.slopes_at_rest(z, basis.lit_offsets(offsets));
+            let ev = evidence_with(z, dz, &cheb, keep, (0.0, 0.0));
+            row.uu[x] = keep_if(ev.uu, row.uu[x]);
+            row.uk[x] = keep_if(ev.uk, row.uk[x]);
+            row.kk[x] = keep_if(ev.kk, row.kk[x]);
+            row.ue[x] = keep_if(ev.ue, row.ue[x]);
+            row.ke[x] = keep_if(ev.ke, row.ke[x]);
+            row.count[x] = keep_if(keep, row.count[x]);
+        }
+    }
+}
+
+/// The second pass, for one pixel that moves or was corrected by the step before: undo the
+/// previous correction, correct with the patch's `(u, κ)`, and write the next step's evidence
+/// or (on the last step) the unit phasor, the offsets without the fringe the motion leaked into
+/// them, and the reasons. The acceleration was taken by [`still_pass`].
+#[inline(always)]
+fn correct_pixel<const REFINE: bool, const LAST: bool>(
+    step: &Step<'_>,
+    row: &mut RowPlanes<'_>,
+    x: usize,
+) {
+    let basis = step.basis;
+    let PatchStep {
+        u,
+        kappa,
+        bright_ok,
+        moving,
+        ..
+    } = patch_step::<REFINE>(step, row, x);
+    let (u0, k0) = if REFINE {
+        (row.velocity[x], row.brightness[x])
+    } else {
+        (0.0, 0.0)
+    };
+    let phases = [row.phase[0][x], row.phase[1][x], row.phase[2][x]];
+    let amps = [row.amp[0][x], row.amp[1][x], row.amp[2][x]];
+    let offsets = [row.offset[0][x], row.offset[1][x], row.offset[2][x]];
+    let lit = basis.lit_offsets(offsets);
+    let (u, kappa) = if moving { (u, kappa) } else { (0.0, 0.0) };
+    // Undo the previous correction, if any; correct only where the patch moves.
+    let corrected_before = REFINE & ((u0 != 0.0) | (k0 != 0.0));
+    let mut within = bright_ok | !moving;
+    let mut worst_det = if moving { f32::INFINITY } else { 1.0 };
+    let (vx, vy) = basis.v;
+    let mut dz = [[(0.0, 0.0); 2]; 3];
+    let mut still = [(0.0, 0.0); 3];
+    // A plain loop: an `array::from_fn` closure here stayed out of line (perf: 55 %).
+    let mut z = [(0.0, 0.0); 3];
+    for slot in 0..3 {
+        let (s, c) = sin_cos_phase(phases[slot]);
+        let mut seen = (amps[slot] * c, amps[slot] * s);
+        let f = basis.f_rad_per_px[slot];
+        if corrected_before {
+            // What the still solve saw: the previous correction undone.
+            let (x, y) = apply(&basis.response(f * u0, k0).0, seen);
+            seen = (x + k0 * lit[slot] * vx, y + k0 * lit[slot] * vy);
+        }
+        still[slot] = seen;
+        z[slot] = seen;
+        if moving {
+            let model = basis.linearised(f * u, kappa);
+            within &= model.within;
+            worst_det = worst_det.min(model.det);
+            let lit_term = (kappa * lit[slot] * vx, kappa * lit[slot] * vy);
+            let zs = apply(&model.inverse, (seen.0 - lit_term.0, seen.1 - lit_term.1));
+            dz[slot] = model.slopes(zs, f, lit[slot], basis.v);
+            z[slot] = zs;
+        }
+    }
+    row.velocity[x] = u;
+    row.brightness[x] = kappa;
+    // Every marked pixel moves now or was corrected before: its phases change.
+    let cheb = chebyshev3(z, step.gain2);
+    for slot in 0..3 {
+        row.phase[slot][x] = cheb.phase[slot];
+        row.amp[slot][x] = cheb.amplitude[slot];
+    }
+    if !LAST {
+        // The next step's evidence, from the corrected phasors. The flags still hold stage
+        // 1's signal reasons alone.
+        let keep = if row.flags[x] == 0 { 1.0 } else { 0.0 };
+        let dz = if moving {
+            dz
+        } else {
+            basis.slopes_at_rest(still, lit)
+        };
+        let ev = evidence_with(z, dz, &cheb, keep, (u, kappa));
+        row.uu[x] = ev.uu;
+        row.uk[x] = ev.uk;
+        row.kk[x] = ev.kk;
+        row.ue[x] = ev.ue;
+        row.ke[x] = ev.ke;
+        row.count[x] = keep;
+        return;
+    }
+    // The offset image without the fringe that the motion leaked into it.
+    let mut leak = [0.0; 3];
+    for slot in (0..3).filter(|_| moving) {
+        let g = basis.f_rad_per_px[slot] * u;
+        let mut r = 0.0;
+        for k in 0..3 {
+            let (s, cs) = sin_cos_small((g * basis.tau_s[k]).clamp(-MAX_TURN_RAD, MAX_TURN_RAD));
+            let (dx, dy) = basis.d[k];
+            let scale = 1.0 + kappa * basis.tau_s[k];
+            // d_kᵀ·R(gτ_k)·z, scaled by the frame's brightness, less the still d_kᵀ·z (which
+            // the offset row cancels).
+            let turned = (dx * cs + dy * s, -dx * s + dy * cs);
+            r += basis.offset_row[k] * (scale * dot2(turned, z[slot]) - dot2(basis.d[k], z[slot]));
+        }
+        leak[slot] = r;
+    }
+    for slot in 0..3 {
+        row.offset[slot][x] = offsets[slot] - dot3(basis.mix_of_slot_row(slot), leak);
+    }
+    let min_amp = cheb.amplitude[0]
+        .min(cheb.amplitude[1])
+        .min(cheb.amplitude[2]);
+    let low = min_amp.is_nan() | (min_amp < step.min_amplitude);
+    let unexplained = !within | (worst_det < MIN_DET);
+    let saturated = row.flags[x] & invalid::SATURATED != 0;
+    let reason = bit(low, invalid::LOW_AMPLITUDE)
+        + bit(saturated, invalid::SATURATED)
+        + bit(inconsistent(&cheb, step.limit), invalid::DISAGREEMENT)
+        + bit(unexplained, invalid::MOTION);
+    let keep = if reason == 0.0 { 1.0 } else { 0.0 };
+    // Only a valid pixel's motion is reported.
+    row.velocity[x] = u * keep;
+    row.brightness[x] = kappa * keep;
+    row.acceleration[x] *= keep;
+    row.kk[x] = keep;
+    row.uu[x] = cheb.unit.0 * keep;
+    row.uk[x] = cheb.unit.1 * keep;
+    row.flags[x] = whole_to_byte(reason);
+}
+
+/// `aᵀ·b` of two 2-vectors.
+#[inline(always)]
+fn dot2(a: (f32, f32), b: (f32, f32)) -> f32 {
+    a.0 * b.0 + a.1 * b.1
+}
+
+#[inline(always)]
+fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
