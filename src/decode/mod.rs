@@ -29,6 +29,7 @@ pub mod motion;
 mod motion_basis;
 mod motion_correct;
 mod motion_evidence;
+mod motion_moving;
 pub mod motion_noise;
 mod output;
 pub mod phasor;

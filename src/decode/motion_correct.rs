@@ -6,25 +6,29 @@
 //! default window (a 2 mm tremor, 640×400) each step corrects 1.6 % of the pixels. A still
 //! pixel that the step before left uncorrected needs no model at all: its phasors stay the
 //! still solution, and the step only writes its evidence at rest (or, on the last step, its
-//! unit phasor and reasons). The first pass does that for every pixel of the block,
+//! unit phasor and reasons). The first pass (here) does that for every pixel of the block,
 //! branch-free, so that it vectorises as stage 1 does; it solves each pixel's patch system,
 //! takes the acceleration, and marks on the stack the pixels that move or were corrected
-//! before, leaving their planes as they were. The second pass runs the full model, scalar, on
-//! the marked pixels only. The two passes write the same values as the single per-pixel loop
-//! they replaced, bit for bit (the arithmetic and its order are unchanged; checked by hashing
-//! every output plane of ten consecutive windows of three trembling hands, two swaying).
-//! Before, that loop branched per pixel on the motion, none of it vectorised, and it took
-//! about half of a motion window's time; `f32::clamp`'s check of its bounds alone also kept
-//! the first pass scalar, hence [`clamp`].
+//! before, leaving their planes as they were. The second pass ([`super::motion_moving`])
+//! gathers the marked pixels into arrays, runs the full model over them in one branch-free
+//! loop, and copies them back. Both passes vectorise. They write the same values as the single
+//! per-pixel loop they replaced, bit for bit (the arithmetic and its order are unchanged;
+//! checked by hashing every output plane of ten consecutive windows of three trembling hands,
+//! two swaying). That loop branched per pixel on the motion, none of it vectorised, and it
+//! took about half of a motion window's time. What kept the compiler from vectorising, found
+//! with LLVM's loop-vectorize remarks: `f32::clamp`'s check of its bounds (hence [`clamp`]),
+//! a slicing helper left out of line (its lengths unknown, so every index checked), loops over
+//! the three slots, and the filled count of the gathered arrays.
 
-use super::fastmath::{sin_cos_phase, sin_cos_small, whole_to_byte};
+use super::fastmath::{sin_cos_phase, whole_to_byte};
 use super::invalid;
-use super::motion::{StepKind, MIN_ACCELERATION_SHIFT_PX, MIN_DET, MOTION_SIGNIFICANCE};
-use super::motion_basis::{apply, MotionBasis, MAX_TURN_RAD};
-use super::motion_evidence::{chebyshev3, chebyshev3_of, evidence_with, inconsistent};
+use super::motion::{StepKind, MIN_ACCELERATION_SHIFT_PX, MOTION_SIGNIFICANCE};
+use super::motion_basis::MotionBasis;
+use super::motion_evidence::{chebyshev3_of, evidence_with, inconsistent};
+use super::motion_moving::{copy_pixel, correct_gathered, Gathered};
 
 /// Pixels per block: the marks of a block sit on the stack between its two passes.
-const BLOCK: usize = 64;
+pub(super) const BLOCK: usize = 64;
 
 /// What one Gauss–Newton step of [`correct_row`] needs.
 pub(super) struct Step<'a> {
@@ -75,6 +79,7 @@ pub(super) struct RowPlanes<'a> {
 
 impl RowPlanes<'_> {
     /// Pixels `start..end` of every plane.
+    #[inline(always)]
     fn block(&mut self, start: usize, end: usize) -> RowPlanes<'_> {
         let [p0, p1, p2] = &mut self.phase;
         let [a0, a1, a2] = &mut self.amp;
@@ -131,6 +136,9 @@ pub(super) fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
 #[inline(always)]
 fn correct_row_as<const REFINE: bool, const LAST: bool>(step: &Step<'_>, mut row: RowPlanes<'_>) {
     let w = row.flags.len();
+    // One per row: the entries a block does not fill hold an earlier block's pixels, worked
+    // on and never copied back.
+    let mut gathered = Gathered::default();
     let mut start = 0;
     while start < w {
         let end = (start + BLOCK).min(w);
@@ -138,8 +146,19 @@ fn correct_row_as<const REFINE: bool, const LAST: bool>(step: &Step<'_>, mut row
         let mut marks = [0u8; BLOCK];
         let marks = &mut marks[..end - start];
         still_pass::<REFINE, LAST>(step, &mut block, marks);
-        for (x, _) in marks.iter().enumerate().filter(|(_, &m)| m != 0) {
-            correct_pixel::<REFINE, LAST>(step, &mut block, x);
+        let mut m = 0;
+        for (x, _) in marks.iter().enumerate().filter(|(_, &mark)| mark != 0) {
+            gathered.index[m] = x;
+            copy_pixel(&block, x, &mut gathered.planes(), m);
+            m += 1;
+        }
+        if m > 0 {
+            correct_gathered(step, &mut gathered);
+            let index = gathered.index;
+            let planes = gathered.planes();
+            for (j, &x) in index[..m].iter().enumerate() {
+                copy_pixel(&planes, j, &mut block, x);
+            }
         }
         start = end;
     }
@@ -149,16 +168,20 @@ fn correct_row_as<const REFINE: bool, const LAST: bool>(step: &Step<'_>, mut row
 /// over its summed evidence, clamped to where the model is defined, and whether it was
 /// solvable, within the brightness range and significant.
 #[derive(Clone, Copy)]
-struct PatchStep {
-    u: f32,
-    kappa: f32,
-    solvable: bool,
-    bright_ok: bool,
-    moving: bool,
+pub(super) struct PatchStep {
+    pub(super) u: f32,
+    pub(super) kappa: f32,
+    pub(super) solvable: bool,
+    pub(super) bright_ok: bool,
+    pub(super) moving: bool,
 }
 
 #[inline(always)]
-fn patch_step<const REFINE: bool>(step: &Step<'_>, row: &RowPlanes<'_>, x: usize) -> PatchStep {
+pub(super) fn patch_step<const REFINE: bool>(
+    step: &Step<'_>,
+    row: &RowPlanes<'_>,
+    x: usize,
+) -> PatchStep {
     let basis = step.basis;
     let (a, b, c) = (
         row.uu[x] + step.prior_u,
@@ -213,7 +236,7 @@ fn clamp(v: f32, limit: f32) -> f32 {
 }
 
 #[inline(always)]
-fn bit(set: bool, value: u8) -> f32 {
+pub(super) fn bit(set: bool, value: u8) -> f32 {
     if set {
         f32::from(value)
     } else {
@@ -223,7 +246,7 @@ fn bit(set: bool, value: u8) -> f32 {
 
 /// The first pass over a block: every pixel's patch step and (on the last step) acceleration;
 /// the still pixels' outputs; `marks` set where the pixel moves or was corrected before, whose
-/// other planes stay as they were for [`correct_pixel`].
+/// other planes stay as they were for the second pass ([`super::motion_moving`]).
 #[inline(always)]
 fn still_pass<const REFINE: bool, const LAST: bool>(
     step: &Step<'_>,
@@ -305,139 +328,4 @@ fn still_pass<const REFINE: bool, const LAST: bool>(
             row.count[x] = keep_if(keep, row.count[x]);
         }
     }
-}
-
-/// The second pass, for one pixel that moves or was corrected by the step before: undo the
-/// previous correction, correct with the patch's `(u, κ)`, and write the next step's evidence
-/// or (on the last step) the unit phasor, the offsets without the fringe the motion leaked into
-/// them, and the reasons. The acceleration was taken by [`still_pass`].
-#[inline(always)]
-fn correct_pixel<const REFINE: bool, const LAST: bool>(
-    step: &Step<'_>,
-    row: &mut RowPlanes<'_>,
-    x: usize,
-) {
-    let basis = step.basis;
-    let PatchStep {
-        u,
-        kappa,
-        bright_ok,
-        moving,
-        ..
-    } = patch_step::<REFINE>(step, row, x);
-    let (u0, k0) = if REFINE {
-        (row.velocity[x], row.brightness[x])
-    } else {
-        (0.0, 0.0)
-    };
-    let phases = [row.phase[0][x], row.phase[1][x], row.phase[2][x]];
-    let amps = [row.amp[0][x], row.amp[1][x], row.amp[2][x]];
-    let offsets = [row.offset[0][x], row.offset[1][x], row.offset[2][x]];
-    let lit = basis.lit_offsets(offsets);
-    let (u, kappa) = if moving { (u, kappa) } else { (0.0, 0.0) };
-    // Undo the previous correction, if any; correct only where the patch moves.
-    let corrected_before = REFINE & ((u0 != 0.0) | (k0 != 0.0));
-    let mut within = bright_ok | !moving;
-    let mut worst_det = if moving { f32::INFINITY } else { 1.0 };
-    let (vx, vy) = basis.v;
-    let mut dz = [[(0.0, 0.0); 2]; 3];
-    let mut still = [(0.0, 0.0); 3];
-    // A plain loop: an `array::from_fn` closure here stayed out of line (perf: 55 %).
-    let mut z = [(0.0, 0.0); 3];
-    for slot in 0..3 {
-        let (s, c) = sin_cos_phase(phases[slot]);
-        let mut seen = (amps[slot] * c, amps[slot] * s);
-        let f = basis.f_rad_per_px[slot];
-        if corrected_before {
-            // What the still solve saw: the previous correction undone.
-            let (x, y) = apply(&basis.response(f * u0, k0).0, seen);
-            seen = (x + k0 * lit[slot] * vx, y + k0 * lit[slot] * vy);
-        }
-        still[slot] = seen;
-        z[slot] = seen;
-        if moving {
-            let model = basis.linearised(f * u, kappa);
-            within &= model.within;
-            worst_det = worst_det.min(model.det);
-            let lit_term = (kappa * lit[slot] * vx, kappa * lit[slot] * vy);
-            let zs = apply(&model.inverse, (seen.0 - lit_term.0, seen.1 - lit_term.1));
-            dz[slot] = model.slopes(zs, f, lit[slot], basis.v);
-            z[slot] = zs;
-        }
-    }
-    row.velocity[x] = u;
-    row.brightness[x] = kappa;
-    // Every marked pixel moves now or was corrected before: its phases change.
-    let cheb = chebyshev3(z, step.gain2);
-    for slot in 0..3 {
-        row.phase[slot][x] = cheb.phase[slot];
-        row.amp[slot][x] = cheb.amplitude[slot];
-    }
-    if !LAST {
-        // The next step's evidence, from the corrected phasors. The flags still hold stage
-        // 1's signal reasons alone.
-        let keep = if row.flags[x] == 0 { 1.0 } else { 0.0 };
-        let dz = if moving {
-            dz
-        } else {
-            basis.slopes_at_rest(still, lit)
-        };
-        let ev = evidence_with(z, dz, &cheb, keep, (u, kappa));
-        row.uu[x] = ev.uu;
-        row.uk[x] = ev.uk;
-        row.kk[x] = ev.kk;
-        row.ue[x] = ev.ue;
-        row.ke[x] = ev.ke;
-        row.count[x] = keep;
-        return;
-    }
-    // The offset image without the fringe that the motion leaked into it.
-    let mut leak = [0.0; 3];
-    for slot in (0..3).filter(|_| moving) {
-        let g = basis.f_rad_per_px[slot] * u;
-        let mut r = 0.0;
-        for k in 0..3 {
-            let (s, cs) = sin_cos_small((g * basis.tau_s[k]).clamp(-MAX_TURN_RAD, MAX_TURN_RAD));
-            let (dx, dy) = basis.d[k];
-            let scale = 1.0 + kappa * basis.tau_s[k];
-            // d_kᵀ·R(gτ_k)·z, scaled by the frame's brightness, less the still d_kᵀ·z (which
-            // the offset row cancels).
-            let turned = (dx * cs + dy * s, -dx * s + dy * cs);
-            r += basis.offset_row[k] * (scale * dot2(turned, z[slot]) - dot2(basis.d[k], z[slot]));
-        }
-        leak[slot] = r;
-    }
-    for slot in 0..3 {
-        row.offset[slot][x] = offsets[slot] - dot3(basis.mix_of_slot_row(slot), leak);
-    }
-    let min_amp = cheb.amplitude[0]
-        .min(cheb.amplitude[1])
-        .min(cheb.amplitude[2]);
-    let low = min_amp.is_nan() | (min_amp < step.min_amplitude);
-    let unexplained = !within | (worst_det < MIN_DET);
-    let saturated = row.flags[x] & invalid::SATURATED != 0;
-    let reason = bit(low, invalid::LOW_AMPLITUDE)
-        + bit(saturated, invalid::SATURATED)
-        + bit(inconsistent(&cheb, step.limit), invalid::DISAGREEMENT)
-        + bit(unexplained, invalid::MOTION);
-    let keep = if reason == 0.0 { 1.0 } else { 0.0 };
-    // Only a valid pixel's motion is reported.
-    row.velocity[x] = u * keep;
-    row.brightness[x] = kappa * keep;
-    row.acceleration[x] *= keep;
-    row.kk[x] = keep;
-    row.uu[x] = cheb.unit.0 * keep;
-    row.uk[x] = cheb.unit.1 * keep;
-    row.flags[x] = whole_to_byte(reason);
-}
-
-/// `aᵀ·b` of two 2-vectors.
-#[inline(always)]
-fn dot2(a: (f32, f32), b: (f32, f32)) -> f32 {
-    a.0 * b.0 + a.1 * b.1
-}
-
-#[inline(always)]
-fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }

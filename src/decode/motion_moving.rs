@@ -1,0 +1,330 @@
+//! The second pass of a motion step ([`super::motion_correct`]): the full model on the pixels
+//! of a block that move or were corrected by the step before. They are gathered into arrays on
+//! the stack, the model runs over every entry in one loop with no branches (each choice is
+//! computed both ways and one selected), so that it vectorises, and the marked entries are
+//! copied back.
+//!
+//! Per pixel: undo the previous step's correction (`(M(g₀) + κ₀N(g₀))·z + κ₀·ō·v`), correct
+//! with the patch's `(u, κ)` (`z = (M(g) + κN(g))⁻¹·(ẑ − κ·ō·v)` per slot, [`super::motion`]),
+//! then write the next step's evidence, or on the last step the phases, amplitudes, unit
+//! phasor, the offsets without the fringe the motion leaked into them, and the reasons.
+
+use super::fastmath::{sin_cos_phase, sin_cos_small, whole_to_byte};
+use super::invalid;
+use super::motion::{StepKind, MIN_DET};
+use super::motion_basis::{apply, MotionBasis, MAX_TURN_RAD};
+use super::motion_correct::{bit, patch_step, PatchStep, RowPlanes, Step, BLOCK};
+use super::motion_evidence::{chebyshev3, evidence_with, inconsistent};
+
+/// The marked pixels of a block, gathered into arrays, so that the full model runs over them
+/// in one branch-free loop that vectorises; `index` says where each came from. The entries
+/// past the block's marked pixels hold zeros or an earlier block's pixels: the model runs on
+/// them too (every value is finite or a harmless NaN) and their results are not copied back.
+pub(super) struct Gathered {
+    pub(super) index: [usize; BLOCK],
+    phase: [[f32; BLOCK]; 3],
+    amp: [[f32; BLOCK]; 3],
+    offset: [[f32; BLOCK]; 3],
+    /// `uu`, `uk`, `kk`, `ue`, `ke` and `count`.
+    evidence: [[f32; BLOCK]; 6],
+    flags: [u8; BLOCK],
+    velocity: [f32; BLOCK],
+    brightness: [f32; BLOCK],
+    acceleration: [f32; BLOCK],
+    /// Not read by the full model (the first pass took the acceleration): never copied.
+    patch_velocity: [f32; BLOCK],
+    patch_moving: [u8; BLOCK],
+}
+
+impl Default for Gathered {
+    fn default() -> Self {
+        Self {
+            index: [0; BLOCK],
+            phase: [[0.0; BLOCK]; 3],
+            amp: [[0.0; BLOCK]; 3],
+            offset: [[0.0; BLOCK]; 3],
+            evidence: [[0.0; BLOCK]; 6],
+            flags: [0; BLOCK],
+            velocity: [0.0; BLOCK],
+            brightness: [0.0; BLOCK],
+            acceleration: [0.0; BLOCK],
+            patch_velocity: [0.0; BLOCK],
+            patch_moving: [0; BLOCK],
+        }
+    }
+}
+
+impl Gathered {
+    #[inline(always)]
+    pub(super) fn planes(&mut self) -> RowPlanes<'_> {
+        let [p0, p1, p2] = &mut self.phase;
+        let [a0, a1, a2] = &mut self.amp;
+        let [o0, o1, o2] = &mut self.offset;
+        let [uu, uk, kk, ue, ke, count] = &mut self.evidence;
+        RowPlanes {
+            phase: [p0, p1, p2],
+            amp: [a0, a1, a2],
+            offset: [o0, o1, o2],
+            uu,
+            uk,
+            kk,
+            ue,
+            ke,
+            count,
+            flags: &mut self.flags,
+            velocity: &mut self.velocity,
+            brightness: &mut self.brightness,
+            acceleration: &mut self.acceleration,
+            patch_velocity: &mut self.patch_velocity,
+            patch_moving: &mut self.patch_moving,
+        }
+    }
+}
+
+/// Copies pixel `i` of `from` to pixel `j` of `to`: every plane the full model reads or writes.
+#[inline(always)]
+pub(super) fn copy_pixel(from: &RowPlanes<'_>, i: usize, to: &mut RowPlanes<'_>, j: usize) {
+    for slot in 0..3 {
+        to.phase[slot][j] = from.phase[slot][i];
+        to.amp[slot][j] = from.amp[slot][i];
+        to.offset[slot][j] = from.offset[slot][i];
+    }
+    to.uu[j] = from.uu[i];
+    to.uk[j] = from.uk[i];
+    to.kk[j] = from.kk[i];
+    to.ue[j] = from.ue[i];
+    to.ke[j] = from.ke[i];
+    to.count[j] = from.count[i];
+    to.flags[j] = from.flags[i];
+    to.velocity[j] = from.velocity[i];
+    to.brightness[j] = from.brightness[i];
+    to.acceleration[j] = from.acceleration[i];
+}
+
+/// The second pass over a block's gathered pixels: a function of its own, whose planes the
+/// compiler knows do not alias, so that the loop vectorises.
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
+pub(super) fn correct_gathered(step: &Step<'_>, gathered: &mut Gathered) {
+    // Every entry, filled or not (the rest are not copied back): a fixed count lets the
+    // compiler see that the arrays do not overlap (with the filled count it asked for more
+    // run-time overlap checks than it makes, and stayed scalar).
+    let mut planes = gathered.planes();
+    let m = BLOCK;
+    match (step.kind == StepKind::Refine, step.last) {
+        (false, false) => (0..m).for_each(|j| correct_pixel::<false, false>(step, &mut planes, j)),
+        (false, true) => (0..m).for_each(|j| correct_pixel::<false, true>(step, &mut planes, j)),
+        (true, false) => (0..m).for_each(|j| correct_pixel::<true, false>(step, &mut planes, j)),
+        (true, true) => (0..m).for_each(|j| correct_pixel::<true, true>(step, &mut planes, j)),
+    }
+}
+
+/// The second pass, for one pixel that moves or was corrected by the step before: undo the
+/// previous correction, correct with the patch's `(u, κ)`, and write the next step's evidence
+/// or (on the last step) the unit phasor, the offsets without the fringe the motion leaked into
+/// them, and the reasons. The acceleration was taken by the first pass.
+#[inline(always)]
+fn correct_pixel<const REFINE: bool, const LAST: bool>(
+    step: &Step<'_>,
+    row: &mut RowPlanes<'_>,
+    x: usize,
+) {
+    let basis = step.basis;
+    let PatchStep {
+        u,
+        kappa,
+        bright_ok,
+        moving,
+        ..
+    } = patch_step::<REFINE>(step, row, x);
+    let (u0, k0) = if REFINE {
+        (row.velocity[x], row.brightness[x])
+    } else {
+        (0.0, 0.0)
+    };
+    let phases = [row.phase[0][x], row.phase[1][x], row.phase[2][x]];
+    let amps = [row.amp[0][x], row.amp[1][x], row.amp[2][x]];
+    let offsets = [row.offset[0][x], row.offset[1][x], row.offset[2][x]];
+    let lit = basis.lit_offsets(offsets);
+    let (u, kappa) = if moving { (u, kappa) } else { (0.0, 0.0) };
+    // Undo the previous correction, if any; correct only where the patch moves.
+    let corrected_before = REFINE & ((u0 != 0.0) | (k0 != 0.0));
+    // Each slot written out rather than looped over, so that the loop over the gathered pixels
+    // (which this is inlined into) has no inner loop and vectorises.
+    let before = (corrected_before, u0, k0);
+    let now = (moving, u, kappa);
+    let slots = [
+        correct_slot::<REFINE>(basis, 0, (phases[0], amps[0], lit[0]), before, now),
+        correct_slot::<REFINE>(basis, 1, (phases[1], amps[1], lit[1]), before, now),
+        correct_slot::<REFINE>(basis, 2, (phases[2], amps[2], lit[2]), before, now),
+    ];
+    let within = (bright_ok | !moving)
+        & (slots[0].within | !moving)
+        & (slots[1].within | !moving)
+        & (slots[2].within | !moving);
+    let worst_det = if moving {
+        f32::INFINITY
+            .min(slots[0].det)
+            .min(slots[1].det)
+            .min(slots[2].det)
+    } else {
+        1.0
+    };
+    let still = [slots[0].still, slots[1].still, slots[2].still];
+    let z = [slots[0].z, slots[1].z, slots[2].z];
+    let dz = [slots[0].dz, slots[1].dz, slots[2].dz];
+    row.velocity[x] = u;
+    row.brightness[x] = kappa;
+    // Every marked pixel moves now or was corrected before: its phases change.
+    let cheb = chebyshev3(z, step.gain2);
+    for slot in 0..3 {
+        row.phase[slot][x] = cheb.phase[slot];
+        row.amp[slot][x] = cheb.amplitude[slot];
+    }
+    if !LAST {
+        // The next step's evidence, from the corrected phasors. The flags still hold stage
+        // 1's signal reasons alone.
+        let keep = if row.flags[x] == 0 { 1.0 } else { 0.0 };
+        let at_rest = basis.slopes_at_rest(still, lit);
+        let dz: [[(f32, f32); 2]; 3] = std::array::from_fn(|slot| {
+            [
+                select2(moving, dz[slot][0], at_rest[slot][0]),
+                select2(moving, dz[slot][1], at_rest[slot][1]),
+            ]
+        });
+        let ev = evidence_with(z, dz, &cheb, keep, (u, kappa));
+        row.uu[x] = ev.uu;
+        row.uk[x] = ev.uk;
+        row.kk[x] = ev.kk;
+        row.ue[x] = ev.ue;
+        row.ke[x] = ev.ke;
+        row.count[x] = keep;
+        return;
+    }
+    // The offset image without the fringe that the motion leaked into it.
+    let leak = [
+        leak_of_slot(basis, 0, (moving, u, kappa), z[0]),
+        leak_of_slot(basis, 1, (moving, u, kappa), z[1]),
+        leak_of_slot(basis, 2, (moving, u, kappa), z[2]),
+    ];
+    for slot in 0..3 {
+        row.offset[slot][x] = offsets[slot] - dot3(basis.mix_of_slot_row(slot), leak);
+    }
+    let min_amp = cheb.amplitude[0]
+        .min(cheb.amplitude[1])
+        .min(cheb.amplitude[2]);
+    let low = min_amp.is_nan() | (min_amp < step.min_amplitude);
+    let unexplained = !within | (worst_det < MIN_DET);
+    let saturated = row.flags[x] & invalid::SATURATED != 0;
+    let reason = bit(low, invalid::LOW_AMPLITUDE)
+        + bit(saturated, invalid::SATURATED)
+        + bit(inconsistent(&cheb, step.limit), invalid::DISAGREEMENT)
+        + bit(unexplained, invalid::MOTION);
+    let keep = if reason == 0.0 { 1.0 } else { 0.0 };
+    // Only a valid pixel's motion is reported.
+    row.velocity[x] = u * keep;
+    row.brightness[x] = kappa * keep;
+    row.acceleration[x] *= keep;
+    row.kk[x] = keep;
+    row.uu[x] = cheb.unit.0 * keep;
+    row.uk[x] = cheb.unit.1 * keep;
+    row.flags[x] = whole_to_byte(reason);
+}
+
+/// One slot of [`correct_pixel`]: its phasor as the still solve saw it, corrected, and how the
+/// correction moves with `u` and `κ`, with the model's determinant and range.
+#[derive(Clone, Copy)]
+struct SlotCorrection {
+    still: (f32, f32),
+    z: (f32, f32),
+    dz: [(f32, f32); 2],
+    within: bool,
+    det: f32,
+}
+
+/// Slot `slot` with phase, amplitude and lit offset `(phase, amp, lit)`, corrected before at
+/// `(u0, κ0)` where `corrected_before`, and now at `(u, κ)` where `moving`. Both sides of each
+/// choice are computed and one is selected: no branches.
+#[inline(always)]
+fn correct_slot<const REFINE: bool>(
+    basis: &MotionBasis,
+    slot: usize,
+    (phase, amp, lit): (f32, f32, f32),
+    (corrected_before, u0, k0): (bool, f32, f32),
+    (moving, u, kappa): (bool, f32, f32),
+) -> SlotCorrection {
+    let (vx, vy) = basis.v;
+    let (s, c) = sin_cos_phase(phase);
+    let mut seen = (amp * c, amp * s);
+    let f = basis.f_rad_per_px[slot];
+    if REFINE {
+        // What the still solve saw: the previous correction undone.
+        let (x, y) = apply(&basis.response(f * u0, k0).0, seen);
+        let undone = (x + k0 * lit * vx, y + k0 * lit * vy);
+        seen = select2(corrected_before, undone, seen);
+    }
+    let model = basis.linearised(f * u, kappa);
+    let lit_term = (kappa * lit * vx, kappa * lit * vy);
+    let zs = apply(&model.inverse, (seen.0 - lit_term.0, seen.1 - lit_term.1));
+    let slopes = model.slopes(zs, f, lit, basis.v);
+    let none = (0.0, 0.0);
+    SlotCorrection {
+        still: seen,
+        z: select2(moving, zs, seen),
+        dz: [
+            select2(moving, slopes[0], none),
+            select2(moving, slopes[1], none),
+        ],
+        within: model.within,
+        det: model.det,
+    }
+}
+
+/// The fringe that motion at `(u, κ)` leaked into slot `slot`'s offset (0 where not `moving`):
+/// `Σ_k O_k·(s_k·d_kᵀ·R(gτ_k)·z − d_kᵀ·z)`, the frame's brightness scale `s_k` and the still
+/// `d_kᵀ·z`, which the offset row cancels.
+#[inline(always)]
+fn leak_of_slot(
+    basis: &MotionBasis,
+    slot: usize,
+    (moving, u, kappa): (bool, f32, f32),
+    z: (f32, f32),
+) -> f32 {
+    let g = basis.f_rad_per_px[slot] * u;
+    let mut r = 0.0;
+    for k in 0..3 {
+        let (s, cs) = sin_cos_small((g * basis.tau_s[k]).clamp(-MAX_TURN_RAD, MAX_TURN_RAD));
+        let (dx, dy) = basis.d[k];
+        let scale = 1.0 + kappa * basis.tau_s[k];
+        let turned = (dx * cs + dy * s, -dx * s + dy * cs);
+        r += basis.offset_row[k] * (scale * dot2(turned, z) - dot2(basis.d[k], z));
+    }
+    if moving {
+        r
+    } else {
+        0.0
+    }
+}
+
+/// `a` if `choose`, else `b`.
+#[inline(always)]
+fn select2(choose: bool, a: (f32, f32), b: (f32, f32)) -> (f32, f32) {
+    (
+        if choose { a.0 } else { b.0 },
+        if choose { a.1 } else { b.1 },
+    )
+}
+
+/// `aᵀ·b` of two 2-vectors.
+#[inline(always)]
+fn dot2(a: (f32, f32), b: (f32, f32)) -> f32 {
+    a.0 * b.0 + a.1 * b.1
+}
+
+#[inline(always)]
+fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
