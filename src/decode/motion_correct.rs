@@ -423,39 +423,28 @@ mod tests {
             row
         }
 
-        fn planes(&mut self, start: usize, end: usize) -> RowPlanes<'_> {
+        /// Every plane, whole; `RowPlanes::block` cuts the pixels a call works on.
+        fn planes(&mut self) -> RowPlanes<'_> {
             let [p0, p1, p2] = &mut self.phase;
             let [a0, a1, a2] = &mut self.amp;
             let [o0, o1, o2] = &mut self.offset;
             let [uu, uk, kk, ue, ke, count] = &mut self.evidence;
             RowPlanes {
-                phase: [
-                    &mut p0[start..end],
-                    &mut p1[start..end],
-                    &mut p2[start..end],
-                ],
-                amp: [
-                    &mut a0[start..end],
-                    &mut a1[start..end],
-                    &mut a2[start..end],
-                ],
-                offset: [
-                    &mut o0[start..end],
-                    &mut o1[start..end],
-                    &mut o2[start..end],
-                ],
-                uu: &mut uu[start..end],
-                uk: &mut uk[start..end],
-                kk: &mut kk[start..end],
-                ue: &mut ue[start..end],
-                ke: &mut ke[start..end],
-                count: &mut count[start..end],
-                flags: &mut self.flags[start..end],
-                velocity: &mut self.velocity[start..end],
-                brightness: &mut self.brightness[start..end],
-                acceleration: &mut self.acceleration[start..end],
-                patch_velocity: &mut self.patch_velocity[start..end],
-                patch_moving: &mut self.patch_moving[start..end],
+                phase: [p0, p1, p2],
+                amp: [a0, a1, a2],
+                offset: [o0, o1, o2],
+                uu,
+                uk,
+                kk,
+                ue,
+                ke,
+                count,
+                flags: &mut self.flags,
+                velocity: &mut self.velocity,
+                brightness: &mut self.brightness,
+                acceleration: &mut self.acceleration,
+                patch_velocity: &mut self.patch_velocity,
+                patch_moving: &mut self.patch_moving,
             }
         }
 
@@ -520,10 +509,10 @@ mod tests {
                 shift_per_velocity_change: 0.5 * basis.mean_tau2_s2 / since_s,
             };
             let mut whole = input.clone();
-            correct_row(&step, whole.planes(0, w));
+            correct_row(&step, whole.planes().block(0, w));
             let mut alone = input.clone();
             for x in 0..w {
-                correct_row(&step, alone.planes(x, x + 1));
+                correct_row(&step, alone.planes().block(x, x + 1));
             }
             assert!(
                 whole.bits() == alone.bits(),
