@@ -25,12 +25,14 @@ pub mod backend;
 mod connect;
 mod consistency;
 pub mod fastmath;
+mod method;
 pub mod motion;
 mod motion_basis;
 mod motion_correct;
 mod motion_evidence;
 mod motion_moving;
 pub mod motion_noise;
+pub mod noise;
 mod output;
 pub mod phasor;
 pub mod reference;
@@ -41,6 +43,7 @@ pub mod unwrap;
 pub mod window;
 
 pub use backend::{CpuBackend, DecodeBackend};
+pub use method::ALL_METHODS;
 pub use motion::MotionBasis;
 pub use output::{DecodeOutput, StageTimings};
 pub use solver::WindowSolver;
@@ -117,6 +120,8 @@ pub enum DecodeError {
     },
     #[error("temporal unwrapping needs the unit frequency (lowest m ≤ 2), lowest here is {0}")]
     NeedsUnitFrequency(u32),
+    #[error("no unwrap method can decode frequencies {frequencies:?}: the Chebyshev unwrap needs three consecutive frequencies (n, n−1, n−2), the temporal unwrap needs the unit frequency (lowest m ≤ 2) and a finer one")]
+    NoUnwrapMethod { frequencies: Vec<u32> },
     /// The backend (a GPU) failed; the message says what it was doing.
     #[error("{backend}: {message}")]
     Backend { backend: String, message: String },

@@ -32,6 +32,10 @@ pub struct Manifest {
     pub recording: Option<RecordingJson>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub trial: Option<TrialJson>,
+    /// The camera's noise, gray levels (standard deviation per sample), when the recording
+    /// states it; otherwise the decode measures it from the frames.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera_noise_gray: Option<f64>,
 }
 
 impl Manifest {
@@ -51,6 +55,7 @@ impl Manifest {
             frames: Vec::new(),
             recording: None,
             trial: None,
+            camera_noise_gray: None,
         }
     }
 }

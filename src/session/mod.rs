@@ -7,10 +7,12 @@
 //! are read one at a time with [`Session::load_frame`]. [`write_session`] writes the folder.
 
 pub mod container;
+pub mod decoding;
 pub mod frames;
 pub mod manifest;
 pub mod record;
 
+pub use decoding::{NoiseSource, SessionDecoding};
 pub use manifest::{Manifest, SessionEntry, TrialJson, SESSION_FORMAT};
 pub use record::Recorder;
 
@@ -60,6 +62,8 @@ pub enum SessionError {
     },
     #[error("frame {index} does not exist (the session has {count} frames)")]
     NoSuchFrame { index: usize, count: usize },
+    #[error(transparent)]
+    Decode(#[from] crate::decode::DecodeError),
 }
 
 /// An opened session.
@@ -173,6 +177,15 @@ impl Session {
             let file = dir.join(&f.file);
             if !file.is_file() {
                 return Err(SessionError::MissingFrame { file });
+            }
+        }
+        if let Some(noise) = manifest.camera_noise_gray {
+            if !(noise.is_finite() && noise > 0.0) {
+                return Err(FieldError {
+                    field: "camera_noise_gray".into(),
+                    why: format!("must be a positive number of gray levels, got {noise}"),
+                }
+                .into());
             }
         }
         for (name, lens) in [

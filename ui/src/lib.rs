@@ -18,3 +18,4 @@ pub mod snapshot;
 pub mod sweep;
 pub mod sweep_motion;
 pub mod tremor_cmd;
+pub mod unwrap_args;

@@ -4,6 +4,7 @@
 //! end.
 
 use crate::gpu_decode::{start_pipeline, DecoderChoice};
+use crate::unwrap_args::UnwrapArgs;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -109,6 +110,8 @@ pub struct ReplayArgs {
     pub decoder: DecoderChoice,
     #[arg(long, value_enum, default_value_t = MotionChoice::Linear)]
     pub motion: MotionChoice,
+    #[command(flatten)]
+    pub unwrap: UnwrapArgs,
 }
 
 /// The motion model inside the window (`--motion`).
@@ -147,6 +150,10 @@ pub fn run_replay(args: &ReplayArgs) -> Result<()> {
         .cross_talk()?
         .unwrap_or_else(tremorscan::color::CrossTalk::identity);
     let stereo = session.stereo_model()?;
+    let decoding = args
+        .unwrap
+        .session_decoding(&session, args.motion.decode_params())?;
+    println!("{}", decoding.describe());
     let pacing = if args.recorded_rate {
         Pacing::Recorded
     } else {
@@ -167,7 +174,7 @@ pub fn run_replay(args: &ReplayArgs) -> Result<()> {
             1
         },
         display: false,
-        decode_params: args.motion.decode_params(),
+        decode_params: decoding.params,
         ..PipelineConfig::default()
     };
     let camera = ReplayCamera::new(session, pacing);

@@ -2,10 +2,12 @@
 //! of a session exported as PLY / float TIFF / PNG, and a session's summary and validation.
 
 use crate::progress::Progress;
+use crate::unwrap_args::UnwrapArgs;
 use anyhow::{bail, ensure, Context, Result};
 use std::path::PathBuf;
 use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::export::{depth_mm, write_colour_png, write_depth_tiff, write_ply};
+use tremorscan::pattern::PatternSequence;
 use tremorscan::rig::{GroundTruth, RigConfig, Tremor, VirtualRig};
 use tremorscan::session::frames::write_png;
 use tremorscan::session::manifest::FrameJson;
@@ -38,10 +40,52 @@ pub struct SimulateArgs {
     /// Seed of the camera noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// The projected sequence: this product's CPS-RGB (the default), CPS with gray images, or
+    /// the multi-frequency phase shift other scanners record (`--periods`, `--steps`).
+    #[arg(long, value_enum, default_value_t = PatternArg::CpsRgb)]
+    pub pattern: PatternArg,
+    /// With `--pattern phase-shift`: fringe periods across the projector's columns, one per
+    /// frequency; the lowest must be 1 (the unit frequency) or less.
+    #[arg(long, value_delimiter = ',', default_values_t = [16, 1])]
+    pub periods: Vec<u32>,
+    /// With `--pattern phase-shift`: equally spaced shifts per frequency.
+    #[arg(long, default_value_t = 3)]
+    pub steps: usize,
     /// Also write the exact depth of every frame as `truth/NNNNNN-depth.tiff` (mm, NaN off
     /// surfaces).
     #[arg(long)]
     pub truth: bool,
+}
+
+/// The sequences `simulate` can project.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PatternArg {
+    /// Three colour images, frequencies n, n−1, n−2 in R, G, B (n = 65, 6-bit).
+    CpsRgb,
+    /// Seven gray images (CPS-gray, n = 65, 8-bit).
+    CpsGray7,
+    /// Nine gray images (CPS-gray, n = 65, 8-bit).
+    CpsGray9,
+    /// Gray multi-frequency phase shift (`--periods`, `--steps`; 8-bit).
+    PhaseShift,
+}
+
+impl PatternArg {
+    /// The sequence on a projector whose coded columns span `x_max`.
+    fn sequence(self, args: &SimulateArgs, x_max: f64) -> Result<PatternSequence> {
+        use tremorscan::pattern::{cps_gray, cps_rgb, multi_frequency, Axis, CpsGrayVariant};
+        let sequence = match self {
+            PatternArg::CpsRgb => cps_rgb(65, x_max, Axis::Columns, 6),
+            PatternArg::CpsGray7 => cps_gray(65, CpsGrayVariant::Minimal7, x_max, Axis::Columns, 8),
+            PatternArg::CpsGray9 => cps_gray(65, CpsGrayVariant::Full9, x_max, Axis::Columns, 8),
+            PatternArg::PhaseShift => {
+                // A period over the whole range is frequency index 2 (f = m·π/x_max).
+                let ms: Vec<u32> = args.periods.iter().map(|p| 2 * p).collect();
+                multi_frequency(&ms, args.steps, x_max, Axis::Columns, 8)
+            }
+        };
+        sequence.with_context(|| format!("--pattern {self:?}"))
+    }
 }
 
 pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
@@ -78,7 +122,7 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
             ..*tremor
         };
     }
-    let seq = config.default_sequence()?;
+    let seq = args.pattern.sequence(args, config.projector.width as f64)?;
     let rig = VirtualRig::new(config, seq)?;
     let frames_dir = args.out.join("frames");
     std::fs::create_dir_all(&frames_dir)
@@ -138,10 +182,12 @@ pub struct DecodeArgs {
     /// PNG of the decoded scene colour.
     #[arg(long)]
     pub color: Option<PathBuf>,
+    #[command(flatten)]
+    pub unwrap: UnwrapArgs,
 }
 
-/// Decodes the window of `session` ending at frame `last` and triangulates it.
-pub fn decode_window(session: &Session, last: usize) -> Result<PointCloud> {
+/// Decodes the window of `session` ending at frame `last` with `params` and triangulates it.
+pub fn decode_window(session: &Session, last: usize, params: DecodeParams) -> Result<PointCloud> {
     let sequence = session.sequence()?;
     let len = sequence.entries.len();
     ensure!(
@@ -157,7 +203,7 @@ pub fn decode_window(session: &Session, last: usize) -> Result<PointCloud> {
     let cross_talk = session
         .cross_talk()?
         .unwrap_or_else(tremorscan::color::CrossTalk::identity);
-    let mut decoder = SlidingDecoder::new(sequence, cross_talk, DecodeParams::default())?;
+    let mut decoder = SlidingDecoder::new(sequence, cross_talk, params)?;
     let mut decoded = false;
     for index in last + 1 - len..=last {
         let frame = session.load_frame(index)?;
@@ -184,7 +230,11 @@ pub fn decode_window(session: &Session, last: usize) -> Result<PointCloud> {
 
 pub fn run_decode(args: &DecodeArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
-    let cloud = decode_window(&session, args.frame)?;
+    let decoding = args
+        .unwrap
+        .session_decoding(&session, DecodeParams::default())?;
+    println!("decode: {}", decoding.describe());
+    let cloud = decode_window(&session, args.frame, decoding.params)?;
     let valid = cloud.valid_count();
     let mut depths: Vec<f32> = depth_mm(&cloud)
         .into_iter()
@@ -219,6 +269,8 @@ pub fn run_decode(args: &DecodeArgs) -> Result<()> {
 pub struct InfoArgs {
     /// Session folder (`cps-session/1`, see docs/formats.md).
     pub session: PathBuf,
+    #[command(flatten)]
+    pub unwrap: UnwrapArgs,
 }
 
 pub fn run_info(args: &InfoArgs) -> Result<()> {
@@ -288,7 +340,18 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
         .map(|_| ())
         .and(session.sequence().map(|_| ()));
     match &measurement {
-        Ok(()) => println!("  use        measurement (calibrated, one coding axis)"),
+        Ok(()) => {
+            println!("  use        measurement (calibrated, one coding axis)");
+            // A sequence no method can unwrap is reported, not fatal: the frames are still
+            // checked below.
+            match args
+                .unwrap
+                .session_decoding(&session, DecodeParams::default())
+            {
+                Ok(decoding) => println!("  decode     {}", decoding.describe()),
+                Err(e) => println!("  decode     impossible: {e:#}"),
+            }
+        }
         Err(e) => println!("  use        calibration only: {e}"),
     }
     let mut progress = Progress::new("checking frames", m.frames.len());

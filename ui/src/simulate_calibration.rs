@@ -51,6 +51,7 @@ fn manifest(config: &RigConfig, entries: &[SessionEntry], pattern: &PatternSeque
         frames: Vec::new(),
         recording: None,
         trial: None,
+        camera_noise_gray: None,
     }
 }
 

@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
-use tremorscan::decode::{DecodeParams, SlidingDecoder};
+use tremorscan::decode::{DecodeParams, SlidingDecoder, UnwrapMethod};
 use tremorscan::rig::{GroundTruth, RigConfig, VirtualRig};
 
 #[derive(clap::Args, Debug, Clone)]
@@ -23,6 +23,8 @@ pub struct SnapshotArgs {
     /// First frame of the window (the tremor phase changes with it).
     #[arg(long, default_value_t = 0)]
     pub frame: u64,
+    #[command(flatten)]
+    pub unwrap: crate::unwrap_args::UnwrapArgs,
 }
 
 const INVALID_RGB: [u8; 3] = [0, 0, 80];
@@ -58,8 +60,12 @@ pub fn run(args: &SnapshotArgs) -> Result<()> {
     let seq = config.default_sequence()?;
     let half_period = seq.period_px(65) / 2.0;
     let rig = VirtualRig::new(config, seq.clone())?;
-    let mut decoder =
-        SlidingDecoder::new(seq.clone(), rig.config.cross_talk, DecodeParams::default())?;
+    let (unwrap, _) = UnwrapMethod::resolve(args.unwrap.requested(), &seq)?;
+    let params = DecodeParams {
+        unwrap,
+        ..DecodeParams::default()
+    };
+    let mut decoder = SlidingDecoder::new(seq.clone(), rig.config.cross_talk, params)?;
     let (w, h) = (rig.width(), rig.height());
     let mut frame = rig.blank_frame();
     let mut truth = GroundTruth::default();

@@ -2,6 +2,7 @@
 //! written as CSV, and their clinical tremor figures as JSON.
 
 use crate::progress::Progress;
+use crate::unwrap_args::UnwrapArgs;
 use anyhow::{bail, Context, Result};
 use nalgebra::Vector3;
 use serde_json::json;
@@ -28,6 +29,8 @@ pub struct ControlPointArgs {
     /// (default: the camera's optical axis).
     #[arg(long, allow_hyphen_values = true)]
     pub vertical: Option<String>,
+    #[command(flatten)]
+    pub unwrap: UnwrapArgs,
 }
 
 #[derive(clap::Args, Debug, Clone)]
@@ -93,11 +96,13 @@ fn all_pixels(session: &Session, control: &ControlPointArgs) -> Result<Vec<(f64,
     Ok(all)
 }
 
-/// Per point: its samples, one per decoded (or refused) window; and the unit vertical axis.
+/// Per point: its samples, one per window decoded with `params` (or refused); and the unit
+/// vertical axis.
 pub fn track_session(
     session: &Session,
     points: &[(f64, f64)],
     vertical: Option<&str>,
+    params: DecodeParams,
 ) -> Result<(Vec<Vec<TrackSample>>, Vector3<f64>)> {
     let sequence = session.sequence()?;
     let (w, h) = session.camera_size();
@@ -111,7 +116,7 @@ pub fn track_session(
         .cross_talk()?
         .unwrap_or_else(tremorscan::color::CrossTalk::identity);
     let window = sequence.entries.len() as f64;
-    let mut decoder = SlidingDecoder::new(sequence, cross_talk, DecodeParams::default())?
+    let mut decoder = SlidingDecoder::new(sequence, cross_talk, params)?
         .with_max_span((window - 0.5) / fps.max(1e-3));
     let triangulator = Triangulator::new(session.stereo_model()?)?;
     let mut cloud = PointCloud::default();
@@ -230,10 +235,21 @@ pub fn report_json(pixel: (f64, f64), r: &TremorReport, axis: &Vector3<f64>) -> 
     })
 }
 
+/// How `session` is decoded for tracking, printed.
+fn decoding_of(session: &Session, control: &ControlPointArgs) -> Result<DecodeParams> {
+    let decoding = control
+        .unwrap
+        .session_decoding(session, DecodeParams::default())?;
+    println!("decode: {}", decoding.describe());
+    Ok(decoding.params)
+}
+
 pub fn run_track(args: &TrackArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
     let points = all_pixels(&session, &args.control)?;
-    let (tracks, axis) = track_session(&session, &points, args.control.vertical.as_deref())?;
+    let params = decoding_of(&session, &args.control)?;
+    let (tracks, axis) =
+        track_session(&session, &points, args.control.vertical.as_deref(), params)?;
     let named: Vec<TrackColumn<'_>> = tracks
         .iter()
         .zip(&points)
@@ -268,11 +284,12 @@ pub fn run_track(args: &TrackArgs) -> Result<()> {
 pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
     let points = all_pixels(&session, &args.control)?;
-    let (tracks, axis) = track_session(&session, &points, args.control.vertical.as_deref())?;
-    // The tracks were decoded with the default parameters: the analysis undoes the averaging
-    // that decode leaves.
+    let params = decoding_of(&session, &args.control)?;
+    let (tracks, axis) =
+        track_session(&session, &points, args.control.vertical.as_deref(), params)?;
+    // The analysis undoes the averaging that the decode leaves.
     let options = AnalysisOptions {
-        window_frames: frames_averaged(&session.sequence()?, &DecodeParams::default()),
+        window_frames: frames_averaged(&session.sequence()?, &params),
         ..AnalysisOptions::default()
     };
     let mut objects = Vec::new();

@@ -194,7 +194,9 @@ pub fn settings_window_ui(ctx: &egui::Context, app: &mut TremorApp) {
                     ui.add(egui::DragValue::new(&mut d.projector_bits).range(1..=8))
                         .labelled_by(l.id);
                     ui.end_row();
-                    ui.label("Unwrapping");
+                    ui.label("Unwrapping").on_hover_text(
+                        "CPS sequences; a replayed session from another scanner takes the method its sequence needs",
+                    );
                     ui.horizontal(|ui| {
                         ui.radio_value(
                             &mut d.unwrap,

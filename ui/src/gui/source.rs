@@ -21,7 +21,7 @@ use tremorscan::device::{Pacing, PlaybackCamera, PlaybackControl, VirtualCamera}
 use tremorscan::pattern::{cps_rgb, Axis, PatternSequence};
 use tremorscan::pipeline::{CloudFrame, DecodePolicy, Pipeline, PipelineConfig, PipelineEvent};
 use tremorscan::rig::{RigConfig, VirtualRig};
-use tremorscan::session::{Manifest, Session};
+use tremorscan::session::{Manifest, Session, SessionDecoding};
 use tremorscan::tremor::LiveTracker;
 
 /// Seconds of displacement history kept per control point.
@@ -46,6 +46,8 @@ pub struct Source {
     /// The newest cloud shown.
     pub latest: Option<Arc<CloudFrame>>,
     pub nominal_fps: f64,
+    /// How a replayed session is decoded (method and noise, with where each comes from).
+    pub decode_note: Option<String>,
 }
 
 /// The CPS-RGB sequence the settings ask for, on a projector of `projector_size`.
@@ -102,7 +104,7 @@ impl Source {
         // plays them in slow motion, shown by the status bar's rates). A real camera uses
         // `DecodePolicy::RealTime`.
         // One frame waiting is enough to keep capture and decode both busy; more only adds latency.
-        let config = PipelineConfig {
+        let mut config = PipelineConfig {
             decode_policy: DecodePolicy::Lossless,
             decode_queue: 1,
             consumer_queue: TRACKER_QUEUE,
@@ -112,6 +114,7 @@ impl Source {
             },
             ..PipelineConfig::default()
         };
+        let mut decode_note = None;
         let (pipeline, recording_manifest, playback, session, nominal_fps) = match &settings.device
         {
             DeviceChoice::VirtualRig => {
@@ -152,6 +155,14 @@ impl Source {
                 let opened = Session::open(session)
                     .with_context(|| format!("opening session {}", session.display()))?;
                 let sequence = opened.sequence()?;
+                // A replay follows the session: the Settings' method where the sequence takes
+                // it, else the sequence's own; the camera noise the session states or shows.
+                let requested =
+                    Some(settings.unwrap.method()).filter(|m| m.check(&sequence).is_ok());
+                let decoding = SessionDecoding::new(&opened, requested, config.decode_params)
+                    .with_context(|| format!("choosing how to decode {}", session.display()))?;
+                config.decode_params = decoding.params;
+                decode_note = Some(format!("replay: {}", decoding.describe()));
                 let cross_talk = opened
                     .cross_talk()?
                     .unwrap_or_else(tremorscan::color::CrossTalk::identity);
@@ -176,14 +187,16 @@ impl Source {
                 )
             }
         };
-        Self::with_pipeline(
+        let mut source = Self::with_pipeline(
             pipeline,
             recording_manifest,
             playback,
             session,
             nominal_fps,
             tracker,
-        )
+        )?;
+        source.decode_note = decode_note;
+        Ok(source)
     }
 
     /// A running pipeline with its tracker thread.
@@ -225,6 +238,7 @@ impl Source {
             session,
             latest: None,
             nominal_fps,
+            decode_note: None,
         })
     }
 

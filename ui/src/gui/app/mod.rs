@@ -120,6 +120,9 @@ impl TremorApp {
                     source.pipeline.camera_name(),
                     source.pipeline.decoder_name()
                 ));
+                if let Some(note) = &source.decode_note {
+                    self.messages.info(note.clone());
+                }
                 self.cloud_view.camera = None;
                 self.source = Some(source);
             }
