@@ -136,7 +136,8 @@ pub enum Measured {
 
 /// The camera noise of `session`'s frames, pooled over up to [`NOISE_WINDOWS`] windows spread
 /// evenly through it (`params` give the amplitude and saturation limits of a usable pixel).
-/// A window whose patterns do not make a solvable window is skipped.
+/// A window whose patterns do not make a solvable window, or one of whose frames cannot be
+/// read, is skipped.
 pub fn measure_camera_noise(
     session: &Session,
     params: &DecodeParams,
@@ -162,9 +163,14 @@ pub fn measure_camera_noise(
         } else {
             0
         };
-        let frames = (start..start + len)
+        // A frame that cannot be read (a damaged record) costs its window, not the decode:
+        // the frames the user asked for may be fine, and their own read reports the damage.
+        let Ok(frames) = (start..start + len)
             .map(|i| session.load_frame(i))
-            .collect::<Result<Vec<_>, _>>()?;
+            .collect::<Result<Vec<_>, _>>()
+        else {
+            continue;
+        };
         let order: Vec<usize> = frames.iter().map(|f| f.pattern_index).collect();
         let Ok(solver) = WindowSolver::new(&sequence, &order, &cross_talk) else {
             continue;

@@ -2,7 +2,8 @@
 //! (three steps at 16 periods and at the unit frequency, gray) rendered by the rig is decoded
 //! by the binary with the temporal unwrap it takes, and checked against the rig's truth;
 //! `--unwrap` overrides, and refuses a method the sequence cannot take; the camera noise is
-//! measured, or taken from the session when it states it.
+//! measured, or taken from the session when it states it, and a damaged frame costs only the
+//! windows that hold it.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
 mod common;
@@ -157,5 +158,24 @@ fn a_stated_camera_noise_is_used_and_a_wrong_one_is_refused() {
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("camera_noise_gray"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_damaged_frame_costs_its_own_windows_only() {
+    let dir = scratch("damaged_frame");
+    simulate(&dir, "cps-rgb", "9");
+    std::fs::write(dir.join("frames/000000.png"), b"not a PNG").unwrap();
+    // The noise is measured from the windows that can be read; the window asked for is fine.
+    let printed = stdout(&tremorscan(&["decode", s(&dir), "--frame", "8"]));
+    assert!(
+        printed.contains("measured from the Chebyshev residual"),
+        "{printed}"
+    );
+    // The window holding the damaged frame says which file it is.
+    let out = tremorscan(&["decode", s(&dir), "--frame", "2"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("000000.png"), "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }
