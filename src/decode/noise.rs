@@ -104,6 +104,7 @@ pub fn window_noise_samples<F: Borrow<Frame>>(
     let g2 = (residual == NoiseResidual::Chebyshev).then(|| gain2(solver));
     let mut obs = vec![0.0f32; n_obs];
     let mut u = vec![0.0f32; n_u];
+    let mut z = vec![(0.0f32, 0.0f32); solver.frequencies.len()];
     for y in (GRID_STEP_PX / 2..h).step_by(GRID_STEP_PX) {
         for x in (GRID_STEP_PX / 2..w).step_by(GRID_STEP_PX) {
             if !observe(solver, frames, y * w + x, saturation_level, &mut obs) {
@@ -113,12 +114,10 @@ pub fn window_noise_samples<F: Borrow<Frame>>(
                 let row = &solver.pinv[r * n_obs..(r + 1) * n_obs];
                 *value = row.iter().zip(&obs).map(|(a, b)| a * b).sum();
             }
-            let z: Vec<(f32, f32)> = (0..solver.frequencies.len())
-                .map(|f| {
-                    let k = solver.cos_unknown(f);
-                    (u[k], u[k + 1])
-                })
-                .collect();
+            for (f, zf) in z.iter_mut().enumerate() {
+                let k = solver.cos_unknown(f);
+                *zf = (u[k], u[k + 1]);
+            }
             // A NaN amplitude counts as low.
             if z.iter()
                 .any(|&(c, s)| c.hypot(s).is_nan() || c.hypot(s) < min_amplitude)
