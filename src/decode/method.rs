@@ -12,13 +12,6 @@
 use super::{DecodeError, UnwrapMethod};
 use crate::pattern::PatternSequence;
 
-/// Every method, in the order the command line lists them.
-pub const ALL_METHODS: [UnwrapMethod; 3] = [
-    UnwrapMethod::ChebyshevRobust,
-    UnwrapMethod::ChebyshevPerPixel,
-    UnwrapMethod::Temporal,
-];
-
 impl UnwrapMethod {
     /// The method that follows from `sequence`'s frequencies.
     pub fn for_sequence(sequence: &PatternSequence) -> Result<Self, DecodeError> {
@@ -78,23 +71,6 @@ impl UnwrapMethod {
 impl std::fmt::Display for UnwrapMethod {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for UnwrapMethod {
-    type Err = String;
-
-    fn from_str(text: &str) -> Result<Self, Self::Err> {
-        ALL_METHODS
-            .into_iter()
-            .find(|m| m.name() == text)
-            .ok_or_else(|| {
-                let names: Vec<&str> = ALL_METHODS.iter().map(|m| m.name()).collect();
-                format!(
-                    "unknown unwrap method `{text}`; expected one of {}",
-                    names.join(", ")
-                )
-            })
     }
 }
 
@@ -173,13 +149,5 @@ mod tests {
             UnwrapMethod::resolve(Some(UnwrapMethod::Temporal), &rgb),
             Err(DecodeError::NeedsUnitFrequency(63))
         );
-    }
-
-    #[test]
-    fn names_read_back() {
-        for m in ALL_METHODS {
-            assert_eq!(m.name().parse::<UnwrapMethod>(), Ok(m));
-        }
-        assert!("chebyshev".parse::<UnwrapMethod>().is_err());
     }
 }

@@ -43,7 +43,6 @@ pub mod unwrap;
 pub mod window;
 
 pub use backend::{CpuBackend, DecodeBackend};
-pub use method::ALL_METHODS;
 pub use motion::MotionBasis;
 pub use output::{DecodeOutput, StageTimings};
 pub use solver::WindowSolver;
