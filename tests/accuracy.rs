@@ -5,7 +5,8 @@ mod common;
 
 use common::{checks_off, decode_once, still_hand_rig};
 use tremorscan::decode::{DecodeParams, MotionParams, UnwrapMethod};
-use tremorscan::rig::{NoiseModel, RigConfig, SceneConfig};
+use tremorscan::rig::edge_eval::evaluate_edges;
+use tremorscan::rig::{NoiseModel, RigConfig, SceneConfig, VirtualRig};
 
 #[test]
 fn noise_free_plane_is_within_five_hundredths_of_a_pixel() {
@@ -111,7 +112,14 @@ fn the_motion_model_sees_no_motion_in_a_noisy_still_hand() {
         );
         if sigma == 2.0 {
             assert_eq!(motion.unwrap_errors, 0, "{motion:?}");
-            assert!(motion.coverage() >= 0.99, "{motion:?}");
+            // Coverage away from the outline: on it the mixed-pixel check refuses the two
+            // pixels either side of each depth edge by design (`tests/mixed_pixels.rs`), about
+            // 0.6 % of the lit pixels at this size. Measured: 99.96 % off the outline, 98.4 %
+            // of all lit pixels (99.0 % without the check).
+            let rig = VirtualRig::new(still_hand_rig(NoiseModel::gaussian(sigma)), seq).unwrap();
+            let edges = evaluate_edges(&rig, DecodeParams::default(), 0).unwrap();
+            let interior = edges.interior_coverage().unwrap();
+            assert!(interior >= 0.99, "{edges:?}");
         }
     }
 }

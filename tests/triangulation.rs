@@ -6,6 +6,7 @@ mod common;
 use common::{decode_once, still_hand_rig};
 use tremorscan::decode::DecodeParams;
 use tremorscan::pattern::{cps_rgb, Axis};
+use tremorscan::rig::edge_eval::outline_mask;
 use tremorscan::rig::{GroundTruth, NoiseModel, VirtualRig};
 use tremorscan::triangulate::{PointCloud, Triangulator};
 
@@ -106,24 +107,46 @@ fn decoded_cloud_matches_the_true_surface() {
         }
     }
     assert!(worst_fast < 1e-3, "fast path off by {worst_fast} mm");
+    // The camera's blur mixes the two surfaces at a depth edge; the decoder refuses most such
+    // pixels (`tests/mixed_pixels.rs` holds it to 0.05 % of the valid ones at 960×600), so the
+    // outline is counted apart.
+    let outline = outline_mask(&truth);
     let mut sum2 = 0.0;
-    let mut count = 0usize;
+    let (mut count, mut interior, mut gross_on_outline) = (0usize, 0usize, 0usize);
     let mut worst = 0f64;
-    for (point, &depth) in cloud.point_in_camera_mm.iter().zip(&truth.depth_mm) {
-        if point[2].is_finite() {
-            let err = f64::from(point[2] - depth);
-            sum2 += err * err;
-            worst = worst.max(err.abs());
-            count += 1;
+    for ((point, &depth), &on_outline) in cloud
+        .point_in_camera_mm
+        .iter()
+        .zip(&truth.depth_mm)
+        .zip(&outline)
+    {
+        if !point[2].is_finite() {
+            continue;
         }
+        let err = f64::from(point[2] - depth);
+        count += 1;
+        if on_outline {
+            gross_on_outline += usize::from(err.abs() > 5.0);
+            continue;
+        }
+        sum2 += err * err;
+        worst = worst.max(err.abs());
+        interior += 1;
     }
-    let rms = (sum2 / count as f64).sqrt();
-    eprintln!("depth RMS {rms:.4} mm, worst {worst:.3} mm over {count} points");
+    let rms = (sum2 / interior as f64).sqrt();
+    eprintln!(
+        "depth RMS {rms:.4} mm, worst {worst:.3} mm over {interior} points off the outline; \
+         {gross_on_outline} of {count} valid points on it more than 5 mm off"
+    );
+    assert!(
+        gross_on_outline * 2000 <= count,
+        "{gross_on_outline} of {count} points on the outline more than 5 mm off"
+    );
     // Depth sensitivity here is about z²/(f_p·b·cos) ≈ 500²/(1380·150) ≈ 1.2 mm per projector
     // pixel, and the decoded coordinate noise at the default noise is about 0.08 px RMS, so the
     // depth RMS should be near 0.1 mm; 0.25 mm leaves room for the steeper parts of the hand.
-    assert!(rms < 0.25, "depth RMS {rms} mm over {count} points");
-    // No wrong fringe order: one period (28 px) would be about 30 mm.
+    assert!(rms < 0.25, "depth RMS {rms} mm over {interior} points");
+    // No wrong fringe order off the outline: one period (28 px) would be about 30 mm.
     assert!(worst < 5.0, "worst depth error {worst} mm");
 }
 

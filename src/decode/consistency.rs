@@ -112,12 +112,12 @@ fn row_jumps(row: &Neighbourhood<'_>, limit: f32, jump: &mut [u8]) {
     "x86_64+avx2+fma",
     "x86_64+sse4.1"
 ))]
-fn apply_jumps(flags: &mut [u8], coord: &mut [f32], jump: &[u8]) {
+fn apply_jumps(flags: &mut [u16], coord: &mut [f32], jump: &[u8]) {
     let n = flags.len();
     let (coord, jump) = (&mut coord[..n], &jump[..n]);
     for x in 0..n {
         let j = jump[x];
-        flags[x] |= j * invalid::ORDER_JUMP;
+        flags[x] |= u16::from(j) * invalid::ORDER_JUMP;
         // A select rather than a conditional store, so the loop vectorises.
         coord[x] = if j != 0 { f32::NAN } else { coord[x] };
     }

@@ -84,6 +84,15 @@ pub fn whole_to_byte(v: f32) -> u8 {
     (v + TWO_POW_23).to_bits() as u8
 }
 
+/// The validity flags of a whole number `v` in `[0, 65535]` (a sum of flag bits), as
+/// [`whole_to_byte`] but keeping the low 16 bits.
+#[inline(always)]
+pub fn whole_to_flags(v: f32) -> u16 {
+    const TWO_POW_23: f32 = 8_388_608.0;
+    // Truncation to the low 16 bits is the intent.
+    (v + TWO_POW_23).to_bits() as u16
+}
+
 /// `v` clamped to `[0, 255]` and truncated toward zero, as a byte; NaN gives 0. Equal to
 /// `v.clamp(0.0, 255.0) as u8` for every input, but vectorises (see [`whole_to_byte`]).
 #[inline(always)]

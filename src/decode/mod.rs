@@ -24,6 +24,7 @@
 pub mod backend;
 mod connect;
 mod consistency;
+pub mod edges;
 pub mod fastmath;
 mod method;
 pub mod motion;
@@ -60,23 +61,26 @@ pub(crate) const BAND_ROWS: usize = 8;
 pub mod invalid {
     /// The smallest per-frequency amplitude is below `min_amplitude`: shadow, black surface, or
     /// outside the projector's field.
-    pub const LOW_AMPLITUDE: u8 = 1;
+    pub const LOW_AMPLITUDE: u16 = 1;
     /// A sample of the window reached the saturation level.
-    pub const SATURATED: u8 = 2;
+    pub const SATURATED: u16 = 2;
     /// The coarse estimate lies near half a period from the fine solution (eq. 8 rounding margin).
-    pub const UNWRAP_MARGIN: u8 = 4;
+    pub const UNWRAP_MARGIN: u16 = 4;
     /// The unwrapped maps of the different frequencies disagree beyond their predicted noise.
-    pub const DISAGREEMENT: u8 = 8;
+    pub const DISAGREEMENT: u16 = 8;
     /// Too few connected neighbours supported the robust coarse estimate.
-    pub const LOW_SUPPORT: u8 = 16;
+    pub const LOW_SUPPORT: u16 = 16;
     /// The coordinate falls outside `[0, x_max)`.
-    pub const OUT_OF_RANGE: u8 = 32;
+    pub const OUT_OF_RANGE: u16 = 32;
     /// A connected neighbour's coordinate differs by more than half a fringe period; with the
     /// motion model, also the pixel's own coordinate one or two windows earlier (`temporal`).
-    pub const ORDER_JUMP: u8 = 64;
+    pub const ORDER_JUMP: u16 = 64;
     /// The motion inside the window is more than the motion model explains (a frame's phase
     /// turns by more than [`super::motion::MAX_TURN_RAD`], or the model is near singular).
-    pub const MOTION: u8 = 128;
+    pub const MOTION: u16 = 128;
+    /// The pixel sits between neighbourhoods whose coordinates disagree, or disagrees with the
+    /// only one it has: at a depth edge it mixes two surfaces ([`super::edges`]).
+    pub const MIXED: u16 = 256;
 }
 
 /// Errors of the decode module.
@@ -231,6 +235,9 @@ pub struct DecodeParams {
     pub max_disagreement_chi2: f32,
     /// Mark connected neighbours whose fringe orders disagree ([`invalid::ORDER_JUMP`]).
     pub check_order_jumps: bool,
+    /// Largest disagreement, projector px, of the coordinate's linear extrapolations from either
+    /// side of a pixel before it is marked [`invalid::MIXED`] ([`edges`]); 0 turns the check off.
+    pub mixed_limit_px: f32,
     pub smoothing: SmoothingParams,
     /// Motion inside the window.
     pub motion: MotionParams,
@@ -246,6 +253,7 @@ impl Default for DecodeParams {
             camera_noise_gray: 2.0,
             max_disagreement_chi2: 25.0,
             check_order_jumps: true,
+            mixed_limit_px: 1.5,
             smoothing: SmoothingParams::default(),
             motion: MotionParams::default(),
         }
@@ -445,6 +453,7 @@ pub(crate) fn finish_window(
             );
         }
     }
+    edges::flag_mixed_pixels(solver, params, out);
     let done = Instant::now();
     out.timings = StageTimings {
         solve_ms: (solved - started).as_secs_f64() * 1e3,

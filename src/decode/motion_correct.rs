@@ -20,7 +20,7 @@
 //! a slicing helper left out of line (its lengths unknown, so every index checked), loops over
 //! the three slots, and the filled count of the gathered arrays.
 
-use super::fastmath::{sin_cos_phase, whole_to_byte};
+use super::fastmath::{sin_cos_phase, whole_to_flags};
 use super::invalid;
 use super::motion::{StepKind, MIN_ACCELERATION_SHIFT_PX, MOTION_SIGNIFICANCE};
 use super::motion_basis::MotionBasis;
@@ -67,7 +67,7 @@ pub(super) struct RowPlanes<'a> {
     pub(super) ue: &'a mut [f32],
     pub(super) ke: &'a mut [f32],
     pub(super) count: &'a mut [f32],
-    pub(super) flags: &'a mut [u8],
+    pub(super) flags: &'a mut [u16],
     pub(super) velocity: &'a mut [f32],
     pub(super) brightness: &'a mut [f32],
     pub(super) acceleration: &'a mut [f32],
@@ -236,7 +236,7 @@ fn clamp(v: f32, limit: f32) -> f32 {
 }
 
 #[inline(always)]
-pub(super) fn bit(set: bool, value: u8) -> f32 {
+pub(super) fn bit(set: bool, value: u16) -> f32 {
     if set {
         f32::from(value)
     } else {
@@ -311,7 +311,7 @@ fn still_pass<const REFINE: bool, const LAST: bool>(
             row.flags[x] = if full {
                 row.flags[x]
             } else {
-                whole_to_byte(reason)
+                whole_to_flags(reason)
             };
         } else {
             // The next step's evidence, at rest. The flags still hold stage 1's signal reasons
@@ -346,7 +346,7 @@ mod tests {
         offset: [Vec<f32>; 3],
         /// `uu`, `uk`, `kk`, `ue`, `ke`, `count`.
         evidence: [Vec<f32>; 6],
-        flags: Vec<u8>,
+        flags: Vec<u16>,
         velocity: Vec<f32>,
         brightness: Vec<f32>,
         acceleration: Vec<f32>,
@@ -465,12 +465,8 @@ mod tests {
             floats
                 .flatten()
                 .map(|v| v.to_bits())
-                .chain(
-                    self.flags
-                        .iter()
-                        .chain(&self.patch_moving)
-                        .map(|&b| u32::from(b)),
-                )
+                .chain(self.flags.iter().map(|&b| u32::from(b)))
+                .chain(self.patch_moving.iter().map(|&b| u32::from(b)))
                 .collect()
         }
     }

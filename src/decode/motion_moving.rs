@@ -9,7 +9,7 @@
 //! then write the next step's evidence, or on the last step the phases, amplitudes, unit
 //! phasor, the offsets without the fringe the motion leaked into them, and the reasons.
 
-use super::fastmath::{sin_cos_phase, sin_cos_small, whole_to_byte};
+use super::fastmath::{sin_cos_phase, sin_cos_small, whole_to_flags};
 use super::invalid;
 use super::motion::{StepKind, MIN_DET};
 use super::motion_basis::{apply, MotionBasis, MAX_TURN_RAD};
@@ -27,7 +27,7 @@ pub(super) struct Gathered {
     offset: [[f32; BLOCK]; 3],
     /// `uu`, `uk`, `kk`, `ue`, `ke` and `count`.
     evidence: [[f32; BLOCK]; 6],
-    flags: [u8; BLOCK],
+    flags: [u16; BLOCK],
     velocity: [f32; BLOCK],
     brightness: [f32; BLOCK],
     acceleration: [f32; BLOCK],
@@ -231,7 +231,7 @@ fn correct_pixel<const REFINE: bool, const LAST: bool>(
     row.kk[x] = keep;
     row.uu[x] = cheb.unit.0 * keep;
     row.uk[x] = cheb.unit.1 * keep;
-    row.flags[x] = whole_to_byte(reason);
+    row.flags[x] = whole_to_flags(reason);
 }
 
 /// One slot of [`correct_pixel`]: its phasor as the still solve saw it, corrected, and how the

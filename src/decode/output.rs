@@ -51,7 +51,7 @@ pub struct DecodeOutput {
     /// Final projector coordinate, projector px; NaN where invalid.
     pub coordinate_px: Vec<f32>,
     /// Invalid-reason bits of [`super::invalid`]; 0 where valid.
-    pub invalid: Vec<u8>,
+    pub invalid: Vec<u16>,
     /// The motion model's coordinate velocity, projector px/s (0 where the pixel is invalid;
     /// untouched by windows decoded without the model).
     pub velocity_px_per_s: Vec<f32>,

@@ -19,7 +19,7 @@
 //!   pixels at edges) are marked [`invalid::DISAGREEMENT`] here, before they can pollute the
 //!   averaged unit phasor of their neighbours.
 
-use super::fastmath::{phase_0_tau, whole_to_byte};
+use super::fastmath::{phase_0_tau, whole_to_flags};
 use super::motion::{self, MotionBasis};
 use super::solver::FactoredSolve;
 use super::{invalid, DecodeOutput, DecodeParams, WindowSolver, BAND_ROWS};
@@ -126,7 +126,7 @@ struct RowOut<'a> {
     support: &'a mut [f32],
     /// The motion model's evidence planes `ue`, `ke` and count (see [`motion::evidence`]).
     motion: [&'a mut [f32]; 3],
-    flags: &'a mut [u8],
+    flags: &'a mut [u16],
 }
 
 #[allow(
@@ -268,13 +268,13 @@ fn solve_row<F: Borrow<Frame>>(
         let min_amp = min_amps[x];
         // A NaN amplitude counts as low.
         let low = min_amp.is_nan() | (min_amp < min_amplitude);
-        let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
+        let bit = |set: bool, value: u16| if set { f32::from(value) } else { 0.0 };
         let reason = bit(low, invalid::LOW_AMPLITUDE) + bit(reasons[x] > 0.0, invalid::SATURATED);
         reasons[x] = reason;
         support[x] = if reason == 0.0 { 1.0 } else { 0.0 };
     }
     for (flag, &reason) in row.flags[..w].iter_mut().zip(&*reasons) {
-        *flag = whole_to_byte(reason);
+        *flag = whole_to_flags(reason);
     }
 }
 
@@ -325,7 +325,7 @@ fn derive_chebyshev3(
     let gain2 = motion::gain2(solver);
     let limit = params.max_disagreement_chi2 * noise2;
     let min_amplitude = params.min_amplitude;
-    let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
+    let bit = |set: bool, value: u16| if set { f32::from(value) } else { 0.0 };
     for x in 0..w {
         let z = [(cu0[x], sv0[x]), (cu1[x], sv1[x]), (cu2[x], sv2[x])];
         let c = motion::chebyshev3(z, gain2);
@@ -348,7 +348,7 @@ fn derive_chebyshev3(
                 support[x] = keep;
                 re[x] = c.unit.0 * keep;
                 im[x] = c.unit.1 * keep;
-                flags[x] = whole_to_byte(reason);
+                flags[x] = whole_to_flags(reason);
             }
             // The motion model: the residual is the velocity's evidence, weighted by its
             // inverse variance, for stage 2 to sum over the patch; it is tested after the
@@ -363,7 +363,7 @@ fn derive_chebyshev3(
                 mue[x] = ev.ue;
                 mke[x] = ev.ke;
                 mcount[x] = keep;
-                flags[x] = whole_to_byte(signal);
+                flags[x] = whole_to_flags(signal);
             }
         }
     }

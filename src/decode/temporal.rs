@@ -230,7 +230,7 @@ fn patch_velocity(velocity_px_per_s: f32, moving: u8) -> f32 {
     "x86_64+sse4.1"
 ))]
 fn row_temporal_jumps(
-    flags: &mut [u8],
+    flags: &mut [u16],
     coord: &mut [f32],
     reference: Reference<'_>,
     limits: Limits,
@@ -261,7 +261,7 @@ fn row_temporal_jumps(
             & (periods != 0.0)
             & (off <= f32::from(older) * limits.max_step_px);
         let keep = c.is_finite() & !jumped;
-        flags[x] |= u8::from(jumped) * invalid::ORDER_JUMP;
+        flags[x] |= u16::from(jumped) * invalid::ORDER_JUMP;
         // Selects rather than conditional stores, so the loop vectorises.
         coord[x] = if jumped { f32::NAN } else { c };
         recent[x] = if keep { c } else { predicted };

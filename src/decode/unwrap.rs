@@ -20,7 +20,7 @@
 //!   shows up the same way. The rounding margin, support and order-jump tests carry the rest.
 //!   A wrong depth is worse than a missing one.
 
-use super::fastmath::whole_to_byte;
+use super::fastmath::whole_to_flags;
 use super::smooth::unit_angle;
 use super::{invalid, DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
 use rayon::prelude::*;
@@ -97,7 +97,7 @@ struct Row<'a> {
     scratch: &'a mut [f32],
     coord: &'a mut [f32],
     coarse: &'a mut [f32],
-    flags: &'a mut [u8],
+    flags: &'a mut [u16],
     phase: &'a [f32],
     amp: &'a [f32],
     re: &'a [f32],
@@ -137,7 +137,7 @@ fn chebyshev_row(c: &Consts<'_>, row: Row<'_>) {
     // New reason bits as f32 sums of distinct powers of two, merged into the byte flags last.
     let added = &mut row.scratch[..w];
     let inv_f1 = 1.0 / c.f1;
-    let bit = |set: bool, value: u8| if set { f32::from(value) } else { 0.0 };
+    let bit = |set: bool, value: u16| if set { f32::from(value) } else { 0.0 };
     // The coarse coordinate first, in a loop of its own so the main loop has no calls.
     if robust {
         let (re, im, support) = (&row.re[..w], &row.im[..w], &row.support[..w]);
@@ -172,7 +172,7 @@ fn chebyshev_row(c: &Consts<'_>, row: Row<'_>) {
         coord[x] = u.combined;
     }
     for x in 0..w {
-        let reason = flags[x] | whole_to_byte(added[x]);
+        let reason = flags[x] | whole_to_flags(added[x]);
         flags[x] = reason;
         if reason != 0 {
             coord[x] = f32::NAN;

@@ -6,14 +6,17 @@
 //! (pinhole + OpenCV distortion, `projector_from_camera` extrinsics) to get its coded coordinate,
 //! test the cast shadow towards the projector centre, evaluate each channel's quantised pattern,
 //! blur the pattern's AC part on skin (subsurface scattering), shade it (Lambert and inverse-square
-//! falloff), multiply by albedo, mix through the cross-talk `c = A·p + b`, add ambient light, read
-//! and shot noise, and quantise to 8 bits with saturation.
+//! falloff), multiply by albedo, mix through the cross-talk `c = A·p + b`, add ambient light,
+//! blur the image with the lens's point-spread function ([`optics`]: pixels at depth edges mix
+//! two surfaces), add read and shot noise, and quantise to 8 bits with saturation.
 
 pub mod board;
 pub mod captures;
+pub mod edge_eval;
 pub mod evaluate;
 pub mod motion_eval;
 pub mod noise;
+pub mod optics;
 pub mod primitives;
 pub mod render;
 pub mod scene;
@@ -68,6 +71,9 @@ pub struct RigConfig {
     pub ambient_gray: f64,
     /// Subsurface scattering of skin as a Gaussian blur of the pattern, projector px.
     pub subsurface_sigma_px: f64,
+    /// The camera's optical blur: the σ of its Gaussian point-spread function, pixels of the
+    /// rendered image ([`optics`]); 0 renders every pixel from its own ray alone.
+    pub camera_psf_sigma_px: f64,
     pub scene: SceneConfig,
     pub fps: f64,
     pub seed: u64,
@@ -123,6 +129,8 @@ impl RigConfig {
             reference_distance_mm: 480.0,
             ambient_gray: 6.0,
             subsurface_sigma_px: 2.5,
+            // A lens of about 1.2 sensor pixels FWHM at 2×–3× binning (optics.rs).
+            camera_psf_sigma_px: 0.4,
             scene: SceneConfig::trembling_hand(),
             fps: 121.0,
             seed: 1,

@@ -1,6 +1,9 @@
-//! Per-pixel image formation of the virtual rig (rows in parallel, deterministic noise).
+//! Per-pixel image formation of the virtual rig (rows in parallel, deterministic noise): shade
+//! each pixel's ray into a linear image, blur it with the lens ([`optics`]), add the sensor's
+//! noise and quantise.
 
 use super::noise::normal_pair;
+use super::optics;
 use super::scene::{Material, PosedScene, SKIN_ALBEDO};
 use super::truth::{surface, GroundTruth};
 use super::VirtualRig;
@@ -95,24 +98,29 @@ fn projected_level(plan: &ChannelPlan, x: f64, levels: f64) -> f64 {
     (ideal * levels + 0.5) as u32 as f64 / levels
 }
 
-/// What one camera pixel sees.
+/// What one camera pixel's ray sees.
 struct Sample {
-    rgb: [u8; 3],
+    /// The linear signal per camera channel, gray levels, before blur and noise.
+    signal: [f32; 3],
     depth_mm: f32,
     coordinate_px: f32,
     surface: u8,
 }
 
+/// Shades every pixel into the linear image, blurs it with the camera's PSF, then adds the
+/// sensor's noise and quantises into `data`.
 pub(crate) fn render_rows(
     ctx: &Context<'_>,
     rays: &[[f32; 3]],
     data: &mut [u8],
     truth: Option<&mut GroundTruth>,
 ) {
-    let w = ctx.rig.width();
+    let (w, h) = (ctx.rig.width(), ctx.rig.height());
+    let mut signal = vec![0.0f32; w * h * 3];
     match truth {
         Some(t) => {
-            data.par_chunks_mut(w * 3)
+            signal
+                .par_chunks_mut(w * 3)
                 .zip(t.depth_mm.par_chunks_mut(w))
                 .zip(t.coordinate_px.par_chunks_mut(w))
                 .zip(t.surface.par_chunks_mut(w))
@@ -120,7 +128,7 @@ pub(crate) fn render_rows(
                 .for_each(|(y, (((row, depth), coord), surf))| {
                     for x in 0..w {
                         let s = shade_pixel(ctx, rays, y * w + x);
-                        row[x * 3..x * 3 + 3].copy_from_slice(&s.rgb);
+                        row[x * 3..x * 3 + 3].copy_from_slice(&s.signal);
                         depth[x] = s.depth_mm;
                         coord[x] = s.coordinate_px;
                         surf[x] = s.surface;
@@ -128,14 +136,37 @@ pub(crate) fn render_rows(
                 });
         }
         None => {
-            data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
-                for x in 0..w {
-                    let s = shade_pixel(ctx, rays, y * w + x);
-                    row[x * 3..x * 3 + 3].copy_from_slice(&s.rgb);
-                }
-            });
+            signal
+                .par_chunks_mut(w * 3)
+                .enumerate()
+                .for_each(|(y, row)| {
+                    for x in 0..w {
+                        let s = shade_pixel(ctx, rays, y * w + x);
+                        row[x * 3..x * 3 + 3].copy_from_slice(&s.signal);
+                    }
+                });
         }
     }
+    if let Some(kernel) = optics::kernel(ctx.rig.config.camera_psf_sigma_px) {
+        optics::blur(&mut signal, w, h, 3, &kernel, &mut Vec::new());
+    }
+    let cfg = &ctx.rig.config;
+    data.par_chunks_mut(w * 3)
+        .zip(signal.par_chunks(w * 3))
+        .enumerate()
+        .for_each(|(y, (out, row))| {
+            for x in 0..w {
+                let pixel = (y * w + x) as u64;
+                let (n0, n1) = normal_pair(cfg.seed, ctx.noise_frame, pixel, 0);
+                let (n2, _) = normal_pair(cfg.seed, ctx.noise_frame, pixel, 1);
+                for (j, n) in [n0, n1, n2].into_iter().enumerate() {
+                    let signal = f64::from(row[x * 3 + j]);
+                    let value = signal + cfg.noise.sigma_at(signal) * f64::from(n);
+                    // Round half up by truncation after clamping to the sensor's range.
+                    out[x * 3 + j] = (value.clamp(0.0, 255.0) + 0.5) as u8;
+                }
+            }
+        });
 }
 
 /// Area-averaged board albedo at `pixel`, its footprint taken from the neighbouring rays (the
@@ -167,7 +198,7 @@ fn shade_pixel(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize) -> Sample {
     let dir = V3::new(f64::from(r[0]), f64::from(r[1]), f64::from(r[2]));
     let origin = V3::zeros();
     let mut sample = Sample {
-        rgb: [0; 3],
+        signal: [0.0; 3],
         depth_mm: f32::NAN,
         coordinate_px: f32::NAN,
         surface: surface::NONE,
@@ -222,14 +253,8 @@ fn shade_pixel(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize) -> Sample {
         }
     }
     let camera = cfg.cross_talk.a * V3::from(projected) + cfg.cross_talk.b_gray;
-    let (n0, n1) = normal_pair(cfg.seed, ctx.noise_frame, pixel as u64, 0);
-    let (n2, _) = normal_pair(cfg.seed, ctx.noise_frame, pixel as u64, 1);
-    let noise = [n0, n1, n2];
     for j in 0..3 {
-        let signal = camera[j] + cfg.ambient_gray * albedo[j];
-        let value = signal + cfg.noise.sigma_at(signal) * f64::from(noise[j]);
-        // Round half up by truncation after clamping to the sensor's range.
-        sample.rgb[j] = (value.clamp(0.0, 255.0) + 0.5) as u8;
+        sample.signal[j] = (camera[j] + cfg.ambient_gray * albedo[j]) as f32;
     }
     sample
 }

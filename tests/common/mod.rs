@@ -55,6 +55,7 @@ pub fn checks_off(mut params: DecodeParams) -> DecodeParams {
     params.max_disagreement_chi2 = f32::INFINITY;
     params.smoothing.min_support = 0.0;
     params.check_order_jumps = false;
+    params.mixed_limit_px = 0.0;
     params
 }
 

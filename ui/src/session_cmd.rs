@@ -40,6 +40,10 @@ pub struct SimulateArgs {
     /// Seed of the camera noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// The camera lens's blur: σ of its Gaussian point-spread function, pixels of the image
+    /// (0: every pixel sees its own ray only). Default: the rig's, 0.4.
+    #[arg(long)]
+    pub psf_px: Option<f64>,
     /// The projected sequence: this product's CPS-RGB (the default), CPS with gray images, or
     /// the multi-frequency phase shift other scanners record (`--periods`, `--steps`).
     #[arg(long, value_enum, default_value_t = PatternArg::CpsRgb)]
@@ -113,6 +117,10 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
     );
     let mut config = RigConfig::paper(args.width, args.height).context("rig configuration")?;
     config.seed = args.seed;
+    if let Some(psf) = args.psf_px {
+        ensure!(psf.is_finite() && psf >= 0.0, "--psf-px must be ≥ 0");
+        config.camera_psf_sigma_px = psf;
+    }
     if let Some(tremor) = config.scene.hand.as_mut() {
         *tremor = Tremor {
             frequency_hz: args.tremor_hz,

@@ -156,7 +156,10 @@ impl GpuBackend {
                 window.params,
             )?),
         };
-        decoder.decode(window, out)
+        decoder.decode(window, out)?;
+        // The host's last stage, as on the CPU: mixed pixels at depth edges.
+        tremorscan::decode::edges::flag_mixed_pixels(window.solver, window.params, out);
+        Ok(())
     }
 }
 

@@ -464,7 +464,7 @@ fn unpack(words: &[u32], w: usize, out: &mut DecodeOutput) {
                 .zip(reason.iter_mut())
                 .zip(coords[span.clone()].iter().zip(&flags[span.clone()]))
             {
-                *r = f as u8;
+                *r = f as u16;
                 *c = if f == 0 {
                     f32::from_bits(word)
                 } else {
