@@ -454,6 +454,9 @@ pub(crate) fn finish_window(
         }
     }
     edges::flag_mixed_pixels(solver, params, out);
+    if motion_basis.is_some() {
+        out.clear_motion_where_invalid();
+    }
     let done = Instant::now();
     out.timings = StageTimings {
         solve_ms: (solved - started).as_secs_f64() * 1e3,

@@ -93,6 +93,25 @@ pub struct DecodeOutput {
 }
 
 impl DecodeOutput {
+    /// Sets the motion model's planes (velocity, brightness change, acceleration) to 0 where
+    /// the pixel is invalid, as their contract says. The model writes them before the later
+    /// stages (unwrap, order jumps, mixed pixels) refuse a pixel, and a refused pixel's motion
+    /// is no measurement: on the rig's still hand with the camera's blur, 12 refused
+    /// pixel-windows at depth edges kept an acceleration from chance evidence.
+    pub fn clear_motion_where_invalid(&mut self) {
+        for (((flags, v), k), a) in self
+            .invalid
+            .iter()
+            .zip(&mut self.velocity_px_per_s)
+            .zip(&mut self.brightness_rate_per_s)
+            .zip(&mut self.acceleration_px_per_s2)
+        {
+            if *flags != 0 {
+                (*v, *k, *a) = (0.0, 0.0, 0.0);
+            }
+        }
+    }
+
     /// Allocates every buffer for `solver`'s shape at `width`×`height`.
     pub fn new(width: usize, height: usize, solver: &WindowSolver) -> Self {
         let n = width * height;
