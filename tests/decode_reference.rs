@@ -139,8 +139,9 @@ fn same_mixed_marks(
     assert!(differs * 1000 <= w * h, "mixed marks differ on {differs}");
 }
 
-/// Per pixel: whether it lies within two pixels of one that the mixed-pixel stage marks on
-/// `reference` (a depth edge).
+/// Per pixel: whether it lies at a depth edge of `reference`: within three pixels of one that
+/// the mixed-pixel stage marks there (it marks the pixels touching the edge, so this is four
+/// pixels from the edge itself, about the reach of the smoothing's links across it).
 fn depth_edges(
     solver: &WindowSolver,
     params: &DecodeParams,
@@ -158,8 +159,8 @@ fn depth_edges(
     (0..w * h)
         .map(|p| {
             let (x, y) = (p % w, p / w);
-            (y.saturating_sub(2)..(y + 3).min(h))
-                .any(|yy| (x.saturating_sub(2)..(x + 3).min(w)).any(|xx| mixed(xx, yy)))
+            (y.saturating_sub(3)..(y + 4).min(h))
+                .any(|yy| (x.saturating_sub(3)..(x + 4).min(w)).any(|xx| mixed(xx, yy)))
         })
         .collect()
 }

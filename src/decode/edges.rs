@@ -77,8 +77,9 @@ impl Planes<'_> {
     /// variance (no valid pixel to take it from) never hides one.
     #[inline]
     fn beyond(&self, difference: f32, k: f32) -> bool {
+        let noise_px2 = NOISE_SIGMAS * NOISE_SIGMAS * k * self.var_px2;
         difference.abs() > self.limit_px
-            && !(difference * difference <= NOISE_SIGMAS * NOISE_SIGMAS * k * self.var_px2)
+            && (noise_px2.is_nan() || difference * difference > noise_px2)
     }
 
     /// The linear extrapolation to a pixel from its neighbours one and two steps away on one
@@ -196,7 +197,7 @@ fn summed_amplitude(out: &DecodeOutput, summed: &mut [f32]) {
 /// positive disables the stage.
 pub fn flag_mixed_pixels(solver: &WindowSolver, params: &DecodeParams, out: &mut DecodeOutput) {
     let limit_px = params.mixed_limit_px;
-    if !(limit_px > 0.0) {
+    if limit_px.is_nan() || limit_px <= 0.0 {
         return;
     }
     let (w, h) = (out.width, out.height);
