@@ -120,14 +120,51 @@ fn bench_rig(c: &mut Criterion) {
         .sample_size(10)
         .measurement_time(Duration::from_secs(10));
     for (w, h) in SIZES {
-        let rig = rig(w, h);
-        let mut frame = rig.blank_frame();
-        let mut index = 0u64;
-        group.bench_function(BenchmarkId::from_parameter(format!("{w}x{h}")), |b| {
-            b.iter(|| {
-                index += 1;
-                rig.render(index, &mut frame, None).unwrap();
+        // The rig's default camera (with the lens's blur), and without the blur: its cost.
+        for (name, psf_sigma_px) in [("lens_blur", None), ("no_blur", Some(0.0))] {
+            let mut config = RigConfig::paper(w, h).unwrap();
+            if let Some(sigma) = psf_sigma_px {
+                config.camera_psf_sigma_px = sigma;
+            }
+            let seq = config.default_sequence().unwrap();
+            let rig = VirtualRig::new(config, seq).unwrap();
+            let mut frame = rig.blank_frame();
+            let mut index = 0u64;
+            group.bench_function(BenchmarkId::new(name, format!("{w}x{h}")), |b| {
+                b.iter(|| {
+                    index += 1;
+                    rig.render(index, &mut frame, None).unwrap();
+                });
             });
+        }
+    }
+    group.finish();
+}
+
+/// Stage 5 alone, the mixed pixels at depth edges (`decode::edges`), on the decoded first
+/// window: each iteration marks a fresh copy of the output.
+fn bench_mixed_pixels(c: &mut Criterion) {
+    let mut group = c.benchmark_group("mixed_pixel_stage");
+    group
+        .sample_size(20)
+        .measurement_time(Duration::from_secs(6));
+    for (w, h) in SIZES {
+        let rig = rig(w, h);
+        let frames = first_window(&rig);
+        let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+        let mut decoded = DecodeOutput::new(w, h, &solver);
+        let unmarked = DecodeParams {
+            mixed_limit_px: 0.0,
+            ..DecodeParams::default()
+        };
+        decode_window(&solver, &frames, &unmarked, Some(65), &mut decoded).unwrap();
+        let params = DecodeParams::default();
+        group.bench_function(BenchmarkId::from_parameter(format!("{w}x{h}")), |b| {
+            b.iter_batched_ref(
+                || decoded.clone(),
+                |out| tremorscan::decode::edges::flag_mixed_pixels(&solver, &params, out),
+                criterion::BatchSize::LargeInput,
+            );
         });
     }
     group.finish();
@@ -186,6 +223,7 @@ criterion_group!(
     bench_decode,
     bench_triangulate,
     bench_rig,
+    bench_mixed_pixels,
     bench_demosaic
 );
 criterion_main!(benches, reference_comparison);

@@ -143,6 +143,37 @@ impl Planes<'_> {
     }
 }
 
+/// Sets `row` (row `y`) to 1 where a pixel needs the general test and 0 where the fast path
+/// clears it: a pixel at least two pixels from the image's border whose four neighbours on
+/// each axis are valid and extrapolate to it within the fixed limit along both axes (the noise
+/// term only raises the limit, so neither axis can mark it). Branch-free over whole rows, so
+/// that it vectorises; on the rig it leaves about one pixel in twenty to the general test.
+fn candidates(planes: &Planes<'_>, y: usize, w: usize, h: usize, row: &mut [u8]) {
+    row.fill(1);
+    if y < 2 || y + 2 >= h || w < 5 {
+        return;
+    }
+    let line = |k: usize| {
+        let start = (y + k - 2) * w;
+        (
+            &planes.coord[start..start + w],
+            &planes.flags[start..start + w],
+        )
+    };
+    let [(c0, f0), (c1, f1), (c2, f2), (c3, f3), (c4, f4)] = [0, 1, 2, 3, 4].map(line);
+    let limit = planes.limit_px;
+    let n = w - 4;
+    let out = &mut row[2..2 + n];
+    for x in 0..n {
+        let flags = (f2[x] | f2[x + 1] | f2[x + 3] | f2[x + 4])
+            | (f0[x + 2] | f1[x + 2] | f3[x + 2] | f4[x + 2]);
+        let horizontal = (2.0 * c2[x + 1] - c2[x]) - (2.0 * c2[x + 3] - c2[x + 4]);
+        let vertical = (2.0 * c1[x + 2] - c0[x + 2]) - (2.0 * c3[x + 2] - c4[x + 2]);
+        let clear = (flags == 0) & (horizontal.abs() <= limit) & (vertical.abs() <= limit);
+        out[x] = u8::from(!clear);
+    }
+}
+
 /// The median, over a grid of valid pixels, of the variance of a pixel's combined coordinate
 /// for camera noise `noise_gray`, px² (NaN with no valid pixel on the grid).
 fn typical_variance(
@@ -187,8 +218,15 @@ fn summed_amplitude(out: &DecodeOutput, summed: &mut [f32]) {
         .par_chunks_mut(w)
         .zip(out.amplitude.par_chunks(w * nf))
         .for_each(|(row, amp)| {
-            for (x, total) in row.iter_mut().enumerate() {
-                *total = (0..nf).map(|i| amp[i * w + x]).sum();
+            let mut planes = amp.chunks_exact(w);
+            match planes.next() {
+                Some(first) => row.copy_from_slice(first),
+                None => row.fill(0.0),
+            }
+            for plane in planes {
+                for (total, a) in row.iter_mut().zip(plane) {
+                    *total += a;
+                }
             }
         });
 }
@@ -222,11 +260,14 @@ pub fn flag_mixed_pixels(solver: &WindowSolver, params: &DecodeParams, out: &mut
     marks.clear();
     marks.resize(w * h, 0);
     marks.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        // First every pixel the fast path clears, then the general test on the rest.
+        candidates(&planes, y, w, h, row);
         let up = |k: usize| y.checked_sub(k).map(|yy| yy * w);
         let down = |k: usize| (y + k < h).then(|| (y + k) * w);
         for (x, mark) in row.iter_mut().enumerate() {
             let p = y * w + x;
-            if planes.flags[p] != 0 {
+            if *mark == 0 || planes.flags[p] != 0 {
+                *mark = 0;
                 continue;
             }
             let left = |k: usize| x.checked_sub(k).map(|xx| y * w + xx);
@@ -242,17 +283,18 @@ pub fn flag_mixed_pixels(solver: &WindowSolver, params: &DecodeParams, out: &mut
         }
     });
     out.smooth_tmp = amplitude;
-    for ((flag, c), &mark) in out
-        .invalid
-        .iter_mut()
-        .zip(out.coordinate_px.iter_mut())
-        .zip(out.jump.iter())
-    {
-        if mark != 0 {
-            *flag |= invalid::MIXED;
-            *c = f32::NAN;
-        }
-    }
+    out.invalid
+        .par_chunks_mut(w)
+        .zip(out.coordinate_px.par_chunks_mut(w))
+        .zip(out.jump.par_chunks(w))
+        .for_each(|((flags, coord), marks)| {
+            for ((flag, c), &mark) in flags.iter_mut().zip(coord).zip(marks) {
+                if mark != 0 {
+                    *flag |= invalid::MIXED;
+                    *c = f32::NAN;
+                }
+            }
+        });
 }
 
 #[cfg(test)]
