@@ -23,7 +23,8 @@
 //!   [`MIN_AMPLITUDE_RATIO`] of the amplitude two pixels into that side: it borders pixels
 //!   without a code, and is either off the surface it touches or lit only by the blur of that
 //!   surface's light (a pixel of a cast shadow next to a finger's outline, whose code is the
-//!   finger's).
+//!   finger's), or the other side's pixels two and three steps away, across a one-pixel gap,
+//!   extrapolate to another surface (the gap is the edge, and the pixel touches it).
 //!
 //! So at a depth edge whose coordinate step exceeds the limit the two pixels touching the edge
 //! are refused, and any in between; the pixels one step further in, which agree with their own
@@ -43,8 +44,10 @@
 //! term takes over, so that noise is not taken for an edge (at σ = 4 on the rig a fixed 1.5 px
 //! refused 5 % of the lit pixels).
 //!
-//! The stage runs on the host after every backend, on the final coordinates and flags, so the
-//! CPU and GPU decoders mark the same pixels.
+//! Almost every pixel has four valid neighbours on each axis that agree within the fixed limit;
+//! a branch-free pass over whole rows (`candidates`) clears those, and the rules above run on
+//! the rest. The stage runs on the host after every backend, on the final coordinates and
+//! flags, so the CPU and GPU decoders mark the same pixels.
 
 use super::{invalid, motion_noise, DecodeOutput, DecodeParams, WindowSolver};
 use rayon::prelude::*;
