@@ -78,8 +78,10 @@ pub mod invalid {
     /// The motion inside the window is more than the motion model explains (a frame's phase
     /// turns by more than [`super::motion::MAX_TURN_RAD`], or the model is near singular).
     pub const MOTION: u16 = 128;
-    /// The pixel sits between neighbourhoods whose coordinates disagree, or disagrees with the
-    /// only one it has: at a depth edge it mixes two surfaces ([`super::edges`]).
+    /// At a depth edge the pixel mixes two surfaces ([`super::edges`]): it touches a jump
+    /// between neighbourhoods whose coordinates disagree, or, bordering pixels without a code,
+    /// it is off its neighbourhood's surface, lit only by the blur of that surface's light, or
+    /// faces another surface across a one-pixel gap.
     pub const MIXED: u16 = 256;
 }
 
@@ -235,8 +237,9 @@ pub struct DecodeParams {
     pub max_disagreement_chi2: f32,
     /// Mark connected neighbours whose fringe orders disagree ([`invalid::ORDER_JUMP`]).
     pub check_order_jumps: bool,
-    /// Largest disagreement, projector px, of the coordinate's linear extrapolations from either
-    /// side of a pixel before it is marked [`invalid::MIXED`] ([`edges`]); 0 turns the check off.
+    /// Smallest disagreement, projector px, between linear extrapolations of the coordinate
+    /// that counts as a depth edge for [`invalid::MIXED`] ([`edges`]; the predicted noise may
+    /// raise it); 0 turns the check off.
     pub mixed_limit_px: f32,
     pub smoothing: SmoothingParams,
     /// Motion inside the window.
