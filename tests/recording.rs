@@ -21,6 +21,7 @@ fn trial() -> TrialJson {
         hand: "right".into(),
         condition: "rest, medication off".into(),
         operator_notes: "slight movement at 2 s".into(),
+        date: "2026-12-03T09:15:00Z".into(),
         control_points: vec![ControlPointJson {
             name: "index tip".into(),
             u: 80.5,

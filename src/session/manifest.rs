@@ -79,6 +79,10 @@ pub struct TrialJson {
     pub condition: String,
     #[serde(default)]
     pub operator_notes: String,
+    /// When the trial was recorded: RFC 3339 in UTC (`2026-12-03T11:30:05Z`), or empty when
+    /// unknown.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub date: String,
     #[serde(default)]
     pub control_points: Vec<ControlPointJson>,
 }

@@ -1,17 +1,18 @@
-//! Tremor measurement: control points tracked in the organised cloud ([`track`]), spectral tools
+//! Tremor measurement: control points tracked in the organised cloud ([`track`]), the
+//! table's plane and frame ([`table`]), spectral tools
 //! ([`spectrum`]), the clinical figures of a displacement series ([`analysis`]) and points
 //! tracked live for the GUI ([`live`]).
 
 pub mod analysis;
 pub mod live;
 pub mod spectrum;
+pub mod table;
 pub mod track;
 
 pub use analysis::{analyze, AnalysisOptions, TremorReport};
 pub use live::{LivePoint, LiveTracker};
-pub use track::{
-    displacements, fit_table_normal, locate, pixel_of, TrackOptions, TrackSample, VerticalAxis,
-};
+pub use table::{fit_table_normal, fit_table_plane, TableFrame, TablePlane};
+pub use track::{displacements, locate, pixel_of, TrackOptions, TrackSample, VerticalAxis};
 
 /// Errors of tremor analysis.
 #[derive(Debug, thiserror::Error, PartialEq)]

@@ -32,7 +32,7 @@ impl Default for TrackOptions {
     }
 }
 
-fn median(values: &mut [f64]) -> f64 {
+pub(crate) fn median(values: &mut [f64]) -> f64 {
     values.sort_by(f64::total_cmp);
     let n = values.len();
     if n % 2 == 1 {
@@ -113,54 +113,6 @@ impl VerticalAxis {
             VerticalAxis::Explicit(v) => v.try_normalize(1e-12),
         }
     }
-}
-
-/// Normal of the dominant plane of `cloud` (the table), pointing away from the camera: a
-/// least-squares plane through a grid of valid points, refit twice without the points more
-/// than 3 robust standard deviations off it (the hand). `None` with too few points.
-pub fn fit_table_normal(cloud: &PointCloud) -> Option<Vector3<f64>> {
-    let step = ((cloud.width * cloud.height) / 20_000).max(1);
-    let mut points: Vec<Vector3<f64>> = cloud
-        .point_in_camera_mm
-        .iter()
-        .step_by(step)
-        .filter(|p| p[2].is_finite())
-        .map(|p| Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
-        .collect();
-    let mut normal = Vector3::z();
-    for _ in 0..3 {
-        if points.len() < 10 {
-            return None;
-        }
-        let centroid = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
-        let mut cov = nalgebra::Matrix3::zeros();
-        for p in &points {
-            let d = p - centroid;
-            cov += d * d.transpose();
-        }
-        let eig = cov.symmetric_eigen();
-        let (k, _) = eig
-            .eigenvalues
-            .iter()
-            .enumerate()
-            .min_by(|a, b| a.1.total_cmp(b.1))?;
-        normal = eig.eigenvectors.column(k).into_owned();
-        if normal.z < 0.0 {
-            normal = -normal;
-        }
-        let dist: Vec<f64> = points
-            .iter()
-            .map(|p| (p - centroid).dot(&normal).abs())
-            .collect();
-        let scale = (1.4826 * median(&mut dist.clone())).max(0.05);
-        points = points
-            .into_iter()
-            .zip(dist)
-            .filter(|(_, d)| *d <= 3.0 * scale)
-            .map(|(p, _)| p)
-            .collect();
-    }
-    Some(normal)
 }
 
 /// One tracked sample.

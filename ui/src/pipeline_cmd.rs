@@ -261,6 +261,7 @@ pub fn run_record(args: &RecordArgs) -> Result<()> {
         hand: args.hand.clone(),
         condition: args.condition.clone(),
         operator_notes: args.notes.clone(),
+        date: tremorscan::calibrate::file::utc_now_iso8601(),
         control_points: Vec::new(),
     };
     pipeline.start_recording(&args.out, manifest, trial)?;

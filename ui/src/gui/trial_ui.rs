@@ -66,6 +66,7 @@ impl TrialForm {
             hand: self.hand.clone(),
             condition: self.condition.trim().to_string(),
             operator_notes: self.notes.clone(),
+            date: tremorscan::calibrate::file::utc_now_iso8601(),
             control_points: Vec::new(),
         }
     }

@@ -1,10 +1,18 @@
 //! Exports of a decoded and triangulated window: the valid points as binary little-endian PLY,
 //! camera-frame depth as a 32-bit float TIFF (NaN where invalid), and the decoded scene colour as
-//! PNG. Each writes to a temporary name and renames, so no half-written file is left behind.
+//! PNG; and of a trial's control-point trajectories ([`motion`]) as Motion-BIDS ([`bids`]) and
+//! C3D ([`c3d`]). Each writes to a temporary name and renames, so no half-written file is left
+//! behind.
 //!
 //! The TIFF is baseline TIFF 6.0 with one uncompressed strip, 1 sample of 32-bit IEEE float per
 //! pixel (SampleFormat 3), little-endian: readable by any TIFF library. [`read_depth_tiff`]
 //! reads that exact layout back (for tests and tools), nothing else.
+
+pub mod bids;
+pub mod c3d;
+pub mod motion;
+
+pub use motion::{MotionFrame, PointTrack, TrialMotion};
 
 use crate::triangulate::PointCloud;
 use std::io::Write;
