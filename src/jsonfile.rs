@@ -42,6 +42,12 @@ pub fn write_atomic<T: Serialize>(path: &Path, value: &T) -> Result<(), JsonFile
         field: String::new(),
         message: e.to_string(),
     })?;
+    write_bytes_atomic(path, text.as_bytes())
+}
+
+/// Writes `bytes` to `path` via `path` + `.tmp` and a rename, so that a reader (or a run that
+/// was interrupted) never sees half a file.
+pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), JsonFileError> {
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".tmp");
     let tmp = PathBuf::from(tmp);
@@ -49,6 +55,6 @@ pub fn write_atomic<T: Serialize>(path: &Path, value: &T) -> Result<(), JsonFile
         let p = p.to_path_buf();
         move |source| JsonFileError::Io { path: p, source }
     };
-    std::fs::write(&tmp, text).map_err(io(&tmp))?;
+    std::fs::write(&tmp, bytes).map_err(io(&tmp))?;
     std::fs::rename(&tmp, path).map_err(io(path))
 }

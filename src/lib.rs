@@ -12,6 +12,8 @@
 //! * [`rig`]: the virtual projector–camera rig with a trembling hand and exact ground truth.
 //! * [`bench`]: the per-stage throughput check behind `tremorscan bench`.
 //! * [`memory`]: this process's resident memory, for the bench and the progress lines.
+//! * [`export`]: point clouds, depth maps, and trials' trajectories as Motion-BIDS and C3D.
+//! * [`study`]: many sessions as one study: discovery, shards, freshness, the study table.
 
 pub mod bench;
 pub mod calibrate;
@@ -28,5 +30,6 @@ pub mod pattern;
 pub mod pipeline;
 pub mod rig;
 pub mod session;
+pub mod study;
 pub mod tremor;
 pub mod triangulate;

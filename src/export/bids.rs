@@ -165,7 +165,8 @@ pub fn write_trial(
     let motion_tsv = folder.join(format!("{stem}_motion.tsv"));
     write_atomic(&motion_tsv, rows.as_bytes())?;
 
-    let mut channels = String::from("name\tcomponent\ttype\ttracked_point\tunits\treference_frame\n");
+    let mut channels =
+        String::from("name\tcomponent\ttype\ttracked_point\tunits\treference_frame\n");
     for p in &motion.points {
         let point = p.name.replace(['\t', '\n', '\r'], " ");
         let label = bids_label(&p.name);
@@ -188,11 +189,14 @@ pub fn write_trial(
         }
         _ => motion.sampling_hz,
     };
-    let sidecar = serde_json::json!({
+    // The rate as the session's time stamps give it, to a microhertz (121.00000000000001 is
+    // 121).
+    let round = |hz: f64| (hz * 1e6).round() / 1e6;
+    let mut sidecar = serde_json::json!({
         "TaskName": name.task,
         "TaskDescription": trial.condition,
-        "SamplingFrequency": motion.sampling_hz,
-        "SamplingFrequencyEffective": effective_hz,
+        "SamplingFrequency": round(motion.sampling_hz),
+        "SamplingFrequencyEffective": round(effective_hz),
         "RecordingType": "continuous",
         "RecordingDuration": motion.duration_s(),
         "TrackingSystemName": "tremorscan Chebyshev Phase Shifting structured light",
@@ -202,8 +206,10 @@ pub fn write_trial(
         "POSChannelCount": 3 * n,
         "TrackedPointsCount": n,
         "MissingValues": "n/a",
-        "SubjectArtefactDescription": trial.operator_notes,
     });
+    if !trial.operator_notes.trim().is_empty() {
+        sidecar["SubjectArtefactDescription"] = serde_json::json!(trial.operator_notes);
+    }
     let sidecar_path = folder.join(format!("{stem}_motion.json"));
     let text = serde_json::to_string_pretty(&sidecar).map_err(|e| ExportError::Format {
         path: sidecar_path.clone(),
@@ -290,7 +296,10 @@ mod tests {
             ..TrialJson::default()
         };
         let name = BidsName::of(&trial, 2).expect("a name");
-        assert_eq!(name.motion_stem(), "sub-P1_task-rest_tracksys-cps_acq-left_run-2");
+        assert_eq!(
+            name.motion_stem(),
+            "sub-P1_task-rest_tracksys-cps_acq-left_run-2"
+        );
         assert_eq!(name.events_stem(), "sub-P1_task-rest_acq-left_run-2");
         trial.condition = " ".into();
         assert!(BidsName::of(&trial, 1)

@@ -113,7 +113,13 @@ impl Parameters {
 /// Text for a C3D character parameter: printable ASCII only, at most `max` characters.
 fn ascii(text: &str, max: usize) -> String {
     text.chars()
-        .map(|c| if c.is_ascii_graphic() || c == ' ' { c } else { '_' })
+        .map(|c| {
+            if c.is_ascii_graphic() || c == ' ' {
+                c
+            } else {
+                '_'
+            }
+        })
         .take(max)
         .collect()
 }
@@ -128,7 +134,11 @@ fn unique_labels(motion: &TrialMotion) -> Vec<String> {
             .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
             .take(24)
             .collect();
-        let base = if base.is_empty() { format!("P{k}") } else { base };
+        let base = if base.is_empty() {
+            format!("P{k}")
+        } else {
+            base
+        };
         let mut label = base.clone();
         let mut n = 2;
         while labels.contains(&label) {
@@ -247,9 +257,8 @@ mod tests {
                     name: (*name).into(),
                     positions_mm: (0..50)
                         .map(|k| {
-                            (k % 7 != m).then(|| {
-                                [k as f64 * 0.5, -(m as f64) * 10.0, 600.25 + k as f64]
-                            })
+                            (k % 7 != m)
+                                .then(|| [k as f64 * 0.5, -(m as f64) * 10.0, 600.25 + k as f64])
                         })
                         .collect(),
                 })

@@ -73,7 +73,10 @@ impl TrialMotion {
     /// `Err` naming the problem when the samples and points do not fit together.
     pub fn check(&self) -> Result<(), String> {
         if !(self.sampling_hz.is_finite() && self.sampling_hz > 0.0) {
-            return Err(format!("sampling rate {} Hz is not positive", self.sampling_hz));
+            return Err(format!(
+                "sampling rate {} Hz is not positive",
+                self.sampling_hz
+            ));
         }
         if self.points.is_empty() {
             return Err("no control points to export".into());

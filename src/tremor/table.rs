@@ -139,7 +139,10 @@ mod tests {
         // The origin is on the optical axis, and a move along the camera's x is along x.
         let o = frame.origin_in_camera_mm;
         assert!(o.x.abs() < 1e-9 && o.y.abs() < 1e-9);
-        assert!(frame.table_from_camera([o.x, o.y, o.z]).iter().all(|c| c.abs() < 1e-9));
+        assert!(frame
+            .table_from_camera([o.x, o.y, o.z])
+            .iter()
+            .all(|c| c.abs() < 1e-9));
         let step = frame.table_from_camera([o.x + 10.0, o.y, o.z]);
         assert!((step[0] - 10.0).abs() < 1e-9 && step[1].abs() < 1e-9);
         // Rigid: distances are kept.

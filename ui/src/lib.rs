@@ -2,10 +2,13 @@
 //! [`render`]) and the headless subcommands of the `tremorscan` binary, all over the core
 //! library `tremorscan`. A library so that the UI tests (`ui/tests`) can drive the app.
 
+pub mod batch_cmd;
+pub mod batch_session;
 pub mod bench_cmd;
 pub mod calibrate_cmd;
 pub mod demo;
 pub mod devices_cmd;
+pub mod export_cmd;
 pub mod gpu_decode;
 pub mod gui;
 pub mod pipeline_cmd;

@@ -4,11 +4,12 @@
 //! writes one decoded window as PNG images; `simulate-calibration`, `calibrate-color`,
 //! `calibrate-geometric` and `import-calibration` calibrate a rig from recorded sessions;
 //! `devices` lists real cameras and projectors, `lightcrafter` programs a LightCrafter 4500;
-//! `bench` tells whether this PC keeps up with the camera.
+//! `bench` tells whether this PC keeps up with the camera; `batch` processes a whole study, and
+//! `export-bids`, `export-c3d` and `export` write a session in the field's formats.
 
 use tremorscan_ui::{
-    bench_cmd, calibrate_cmd, demo, devices_cmd, gui, pipeline_cmd, session_cmd,
-    simulate_calibration, snapshot, sweep, tremor_cmd,
+    batch_cmd, bench_cmd, calibrate_cmd, demo, devices_cmd, export_cmd, gui, pipeline_cmd,
+    session_cmd, simulate_calibration, snapshot, sweep, tremor_cmd,
 };
 
 use anyhow::Result;
@@ -63,6 +64,15 @@ enum Command {
     Lightcrafter(devices_cmd::LightcrafterArgs),
     /// Measure per-stage decode times at the camera's size: does this PC keep up?
     Bench(bench_cmd::BenchArgs),
+    /// Analyse every session of a study into one table (study.csv), per-session reports, C3D
+    /// and optionally Motion-BIDS; `--shard I/N` and `--merge` for a cluster.
+    Batch(batch_cmd::BatchArgs),
+    /// Write a session's control-point trajectories into a Motion-BIDS dataset.
+    ExportBids(export_cmd::ExportBidsArgs),
+    /// Write a session's control points as C3D markers (mm, table frame).
+    ExportC3d(export_cmd::ExportC3dArgs),
+    /// Write a session's windows as a PLY point-cloud sequence and/or float depth TIFFs.
+    Export(export_cmd::ExportArgs),
 }
 
 /// Runs the command; a failure prints one line, `error: ` and its causes, and exits with 1.
@@ -98,5 +108,9 @@ fn run() -> Result<()> {
         Some(Command::Bench(args)) => bench_cmd::run_bench(&args),
         Some(Command::CalibrateGeometric(args)) => calibrate_cmd::run_geometric(&args),
         Some(Command::ImportCalibration(args)) => calibrate_cmd::run_import(&args),
+        Some(Command::Batch(args)) => batch_cmd::run_batch(&args),
+        Some(Command::ExportBids(args)) => export_cmd::run_export_bids(&args),
+        Some(Command::ExportC3d(args)) => export_cmd::run_export_c3d(&args),
+        Some(Command::Export(args)) => export_cmd::run_export(&args),
     }
 }

@@ -3,7 +3,7 @@
 //! figures in the title. Drawn with plotters on an in-memory bitmap; text in DejaVu Sans
 //! (`assets/fonts`, embedded, so no system font is needed).
 
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, Context, Result};
 use plotters::prelude::*;
 use std::path::Path;
 use std::sync::Once;
@@ -53,7 +53,12 @@ pub fn write_report(path: &Path, points: &[PointFigure]) -> Result<()> {
 fn image_save(path: &Path, rgb: &[u8], width: u32, height: u32) -> Result<()> {
     let frame =
         tremorscan::frame::Frame::from_data(width as usize, height as usize, 3, rgb.to_vec())?;
-    tremorscan::session::frames::write_png(path, &frame)?;
+    // Written beside the target under a `.tmp.png` name and renamed, so an interrupted run
+    // leaves no half-written report.
+    let tmp = path.with_extension("tmp.png");
+    tremorscan::session::frames::write_png(&tmp, &frame)?;
+    std::fs::rename(&tmp, path)
+        .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))?;
     Ok(())
 }
 

@@ -59,6 +59,32 @@ pub struct SimulateArgs {
     /// surfaces).
     #[arg(long)]
     pub truth: bool,
+    /// The trial's subject id (writes the trial metadata into session.json).
+    #[arg(long)]
+    pub subject: Option<String>,
+    /// The trial's hand (`left`, `right`).
+    #[arg(long, default_value = "")]
+    pub hand: String,
+    /// The trial's condition (e.g. `rest`).
+    #[arg(long, default_value = "")]
+    pub condition: String,
+    /// A saved control point `NAME=U,V` (repeat for more), as the GUI saves them.
+    #[arg(long = "control-point", value_parser = parse_named_point)]
+    pub control_points: Vec<tremorscan::session::manifest::ControlPointJson>,
+}
+
+fn parse_named_point(
+    text: &str,
+) -> Result<tremorscan::session::manifest::ControlPointJson, String> {
+    let (name, pixel) = text
+        .rsplit_once('=')
+        .ok_or_else(|| format!("`{text}`: expected NAME=U,V"))?;
+    let (u, v) = crate::tremor_cmd::parse_point(pixel)?;
+    Ok(tremorscan::session::manifest::ControlPointJson {
+        name: name.to_string(),
+        u,
+        v,
+    })
 }
 
 /// The sequences `simulate` can project.
@@ -158,6 +184,16 @@ pub fn run_simulate(args: &SimulateArgs) -> Result<()> {
         progress.step(i + 1);
     }
     progress.finish();
+    if args.subject.is_some() || !args.control_points.is_empty() {
+        manifest.trial = Some(tremorscan::session::TrialJson {
+            subject_id: args.subject.clone().unwrap_or_default(),
+            hand: args.hand.clone(),
+            condition: args.condition.clone(),
+            operator_notes: String::new(),
+            date: tremorscan::calibrate::file::utc_now_iso8601(),
+            control_points: args.control_points.clone(),
+        });
+    }
     tremorscan::jsonfile::write_atomic(&args.out.join("session.json"), &manifest)?;
     println!(
         "wrote {}: {} frames of {}×{} at {} FPS, tremor {} Hz, {} mm, sway {} mm, roll {}°",

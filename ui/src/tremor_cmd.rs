@@ -9,10 +9,11 @@ use serde_json::json;
 use std::io::Write;
 use std::path::PathBuf;
 use tremorscan::decode::{frames_averaged, DecodeParams, SlidingDecoder, WindowOutcome};
+use tremorscan::export::{MotionFrame, PointTrack, TrialMotion};
 use tremorscan::session::Session;
 use tremorscan::tremor::{
-    analyze, displacements, fit_table_normal, locate, pixel_of, AnalysisOptions, TrackOptions,
-    TrackSample, TremorError, TremorReport,
+    analyze, displacements, fit_table_plane, locate, pixel_of, AnalysisOptions, TableFrame,
+    TablePlane, TrackOptions, TrackSample, TremorError, TremorReport,
 };
 use tremorscan::triangulate::{PointCloud, Triangulator};
 
@@ -58,7 +59,7 @@ pub struct AnalyzeArgs {
     pub png: Option<PathBuf>,
 }
 
-fn parse_point(text: &str) -> Result<(f64, f64), String> {
+pub fn parse_point(text: &str) -> Result<(f64, f64), String> {
     let (u, v) = text
         .split_once(',')
         .ok_or_else(|| format!("`{text}`: expected U,V"))?;
@@ -96,14 +97,65 @@ fn all_pixels(session: &Session, control: &ControlPointArgs) -> Result<Vec<(f64,
     Ok(all)
 }
 
-/// Per point: its samples, one per window decoded with `params` (or refused); and the unit
-/// vertical axis.
+/// The control points tracked through a session.
+pub struct SessionTracks {
+    /// Per point: its samples, one per window (refused windows included, as invalid samples).
+    pub tracks: Vec<Vec<TrackSample>>,
+    /// The unit vertical axis the displacements are taken along.
+    pub axis: Vector3<f64>,
+    /// The table's plane, fitted in the first decoded window.
+    pub table: Option<TablePlane>,
+    /// The camera's frame rate, Hz.
+    pub frame_rate_hz: f64,
+}
+
+impl SessionTracks {
+    /// The tracks as a trial's motion for the exports: in the table frame when the table was
+    /// found, else in the camera frame. `names` has one name per point.
+    pub fn motion(&self, names: &[String]) -> TrialMotion {
+        let table = self.table.as_ref().and_then(TableFrame::on);
+        let times_s = self
+            .tracks
+            .first()
+            .map(|t| t.iter().map(|s| s.time_s).collect())
+            .unwrap_or_default();
+        let points = self
+            .tracks
+            .iter()
+            .zip(names)
+            .map(|(track, name)| PointTrack {
+                name: name.clone(),
+                positions_mm: track
+                    .iter()
+                    .map(|s| {
+                        s.position_mm
+                            .map(|p| table.as_ref().map_or(p, |f| f.table_from_camera(p)))
+                    })
+                    .collect(),
+            })
+            .collect();
+        TrialMotion {
+            sampling_hz: self.frame_rate_hz,
+            times_s,
+            points,
+            frame: if table.is_some() {
+                MotionFrame::Table
+            } else {
+                MotionFrame::Camera
+            },
+        }
+    }
+}
+
+/// Tracks `points` through every window of `session` decoded with `params`; `vertical` as
+/// `--vertical` takes it. `show_progress` draws a progress bar (when stderr is a terminal).
 pub fn track_session(
     session: &Session,
     points: &[(f64, f64)],
     vertical: Option<&str>,
     params: DecodeParams,
-) -> Result<(Vec<Vec<TrackSample>>, Vector3<f64>)> {
+    show_progress: bool,
+) -> Result<SessionTracks> {
     let sequence = session.sequence()?;
     let (w, h) = session.camera_size();
     for &(u, v) in points {
@@ -137,7 +189,8 @@ pub fn track_session(
             Some(v)
         }
     };
-    let mut progress = Progress::new("tracking", session.frame_count());
+    let mut table = None;
+    let mut progress = show_progress.then(|| Progress::new("tracking", session.frame_count()));
     for i in 0..session.frame_count() {
         let frame = session.load_frame(i)?;
         let centre_s = frame.time_s - (window - 1.0) / 2.0 / fps.max(1e-3);
@@ -149,8 +202,11 @@ pub fn track_session(
             WindowOutcome::Filling { .. } => continue,
             _ => false,
         };
-        if decoded && axis.is_none() {
-            axis = fit_table_normal(&cloud);
+        if decoded && table.is_none() {
+            table = fit_table_plane(&cloud);
+            if axis.is_none() {
+                axis = table.map(|t| t.normal);
+            }
         }
         for (track, &pixel) in tracks.iter_mut().zip(points) {
             track.push(TrackSample {
@@ -163,11 +219,20 @@ pub fn track_session(
                 },
             });
         }
-        progress.step(i + 1);
+        if let Some(p) = progress.as_mut() {
+            p.step(i + 1);
+        }
     }
-    progress.finish();
+    if let Some(p) = progress.as_mut() {
+        p.finish();
+    }
     let axis = axis.context("no window decoded, so no table plane could be fitted")?;
-    Ok((tracks, axis))
+    Ok(SessionTracks {
+        tracks,
+        axis,
+        table,
+        frame_rate_hz: fps,
+    })
 }
 
 /// One control point's samples, for [`track_csv`].
@@ -248,8 +313,13 @@ pub fn run_track(args: &TrackArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
     let points = all_pixels(&session, &args.control)?;
     let params = decoding_of(&session, &args.control)?;
-    let (tracks, axis) =
-        track_session(&session, &points, args.control.vertical.as_deref(), params)?;
+    let SessionTracks { tracks, axis, .. } = track_session(
+        &session,
+        &points,
+        args.control.vertical.as_deref(),
+        params,
+        true,
+    )?;
     let named: Vec<TrackColumn<'_>> = tracks
         .iter()
         .zip(&points)
@@ -281,56 +351,118 @@ pub fn run_track(args: &TrackArgs) -> Result<()> {
     Ok(())
 }
 
+/// One control point's analysis.
+pub struct PointOutcome {
+    pub name: String,
+    pub pixel: (f64, f64),
+    pub times_s: Vec<f64>,
+    pub displacement_mm: Vec<Option<f64>>,
+    /// The figures, or why they are missing (too little was measured).
+    pub report: Result<TremorReport, String>,
+}
+
+impl PointOutcome {
+    /// The JSON object `analyze` writes for this point.
+    pub fn json(&self, axis: &Vector3<f64>) -> serde_json::Value {
+        let (u, v) = self.pixel;
+        match &self.report {
+            Ok(r) => {
+                let mut object = report_json(self.pixel, r, axis);
+                object["name"] = json!(self.name);
+                object
+            }
+            Err(why) => json!({ "name": self.name, "pixel": [u, v], "figures_missing": why }),
+        }
+    }
+
+    /// The point's panel in the report figure.
+    pub fn figure(&self) -> crate::report_png::PointFigure {
+        crate::report_png::PointFigure {
+            label: self.name.clone(),
+            times_s: self.times_s.clone(),
+            displacement_mm: self.displacement_mm.clone(),
+            report: self.report.clone(),
+        }
+    }
+}
+
+/// The tremor figures of every tracked point. A point with too little measured gets the reason
+/// instead of figures; any other analysis failure is an error naming the point.
+pub fn analyze_tracks(
+    sequence_frames_averaged: usize,
+    tracked: &SessionTracks,
+    names: &[String],
+    pixels: &[(f64, f64)],
+) -> Result<Vec<PointOutcome>> {
+    // The analysis undoes the averaging that the decode leaves.
+    let options = AnalysisOptions {
+        window_frames: sequence_frames_averaged,
+        ..AnalysisOptions::default()
+    };
+    let mut outcomes = Vec::new();
+    for ((track, name), &pixel) in tracked.tracks.iter().zip(names).zip(pixels) {
+        let times_s: Vec<f64> = track.iter().map(|s| s.time_s).collect();
+        let displacement_mm = displacements(track, &tracked.axis);
+        let report = match analyze(&times_s, &displacement_mm, &options) {
+            Ok(r) => Ok(r),
+            // Too little was measured at this point: say so, keep the other points' figures.
+            Err(e @ TremorError::TooFewValid { .. }) => Err(e.to_string()),
+            Err(e) => return Err(e).with_context(|| format!("point `{name}`")),
+        };
+        outcomes.push(PointOutcome {
+            name: name.clone(),
+            pixel,
+            times_s,
+            displacement_mm,
+            report,
+        });
+    }
+    Ok(outcomes)
+}
+
 pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
     let points = all_pixels(&session, &args.control)?;
     let params = decoding_of(&session, &args.control)?;
-    let (tracks, axis) =
-        track_session(&session, &points, args.control.vertical.as_deref(), params)?;
-    // The analysis undoes the averaging that the decode leaves.
-    let options = AnalysisOptions {
-        window_frames: frames_averaged(&session.sequence()?, &params),
-        ..AnalysisOptions::default()
-    };
-    let mut objects = Vec::new();
-    let mut series = Vec::new();
-    for (track, &(u, v)) in tracks.iter().zip(&points) {
-        let times: Vec<f64> = track.iter().map(|s| s.time_s).collect();
-        let d = displacements(track, &axis);
-        let report = match analyze(&times, &d, &options) {
-            Ok(r) => {
-                println!(
-                    "point ({u}, {v}): peak {} Hz, peak-to-peak {:.3} mm, RMS {:.3} mm, occupancy {:.0} %, MDS-UPDRS amplitude bin {}, {} % valid",
-                    r.peak_frequency_hz.map_or("none".to_string(), |f| format!("{f:.3}")),
-                    r.amplitude_peak_to_peak_mm,
-                    r.amplitude_rms_mm,
-                    100.0 * r.occupancy,
-                    r.updrs_amplitude_bin,
-                    (100.0 * r.valid_fraction).round()
-                );
-                objects.push(report_json((u, v), &r, &axis));
-                Ok(r)
-            }
-            // Too little was measured at this point: say so, keep the other points' figures.
-            Err(e @ TremorError::TooFewValid { .. }) => {
-                println!("point ({u}, {v}): {e}");
-                objects.push(json!({ "pixel": [u, v], "figures_missing": e.to_string() }));
-                Err(e.to_string())
-            }
-            Err(e) => return Err(e).with_context(|| format!("point {u},{v}")),
-        };
-        series.push(crate::report_png::PointFigure {
-            label: format!("point ({u}, {v})"),
-            times_s: times,
-            displacement_mm: d,
-            report,
-        });
+    let tracked = track_session(
+        &session,
+        &points,
+        args.control.vertical.as_deref(),
+        params,
+        true,
+    )?;
+    let names: Vec<String> = points
+        .iter()
+        .map(|(u, v)| format!("point ({u}, {v})"))
+        .collect();
+    let outcomes = analyze_tracks(
+        frames_averaged(&session.sequence()?, &params),
+        &tracked,
+        &names,
+        &points,
+    )?;
+    for o in &outcomes {
+        match &o.report {
+            Ok(r) => println!(
+                "{}: peak {} Hz, peak-to-peak {:.3} mm, RMS {:.3} mm, occupancy {:.0} %, MDS-UPDRS amplitude bin {}, {} % valid",
+                o.name,
+                r.peak_frequency_hz.map_or("none".to_string(), |f| format!("{f:.3}")),
+                r.amplitude_peak_to_peak_mm,
+                r.amplitude_rms_mm,
+                100.0 * r.occupancy,
+                r.updrs_amplitude_bin,
+                (100.0 * r.valid_fraction).round()
+            ),
+            Err(why) => println!("{}: {why}", o.name),
+        }
     }
     if let Some(png) = &args.png {
-        crate::report_png::write_report(png, &series)
+        let figures: Vec<_> = outcomes.iter().map(PointOutcome::figure).collect();
+        crate::report_png::write_report(png, &figures)
             .with_context(|| format!("writing {}", png.display()))?;
         println!("wrote {}", png.display());
     }
+    let objects: Vec<serde_json::Value> = outcomes.iter().map(|o| o.json(&tracked.axis)).collect();
     tremorscan::jsonfile::write_atomic(&args.json, &objects)?;
     println!("wrote {}", args.json.display());
     Ok(())
