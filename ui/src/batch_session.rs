@@ -8,9 +8,10 @@
 //! writes only `rows.csv` (its error row), so it too is skipped until its inputs change or
 //! `--force`; the error is the same until then.
 
+use crate::export_cmd::ControlPoints;
 use crate::tremor_cmd::{analyze_tracks, track_session, PointOutcome};
 use crate::unwrap_args::UnwrapArgs;
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use tremorscan::decode::{frames_averaged, DecodeParams};
@@ -187,19 +188,7 @@ fn metadata_row(job: &SessionJob<'_>, trial: &TrialJson) -> StudyRow {
 fn analyse(job: &SessionJob<'_>, session_dir: &Path, dir: &Path) -> Result<Vec<StudyRow>> {
     let session = Session::open(session_dir)?;
     let trial = session.manifest.trial.clone().unwrap_or_default();
-    let mut names: Vec<String> = trial
-        .control_points
-        .iter()
-        .map(|p| p.name.clone())
-        .collect();
-    let mut pixels: Vec<(f64, f64)> = trial.control_points.iter().map(|p| (p.u, p.v)).collect();
-    for &(u, v) in job.extra_points {
-        names.push(format!("point ({u}, {v})"));
-        pixels.push((u, v));
-    }
-    if pixels.is_empty() {
-        bail!("no control points: session.json's trial has none, and no --point was given");
-    }
+    let ControlPoints { names, pixels } = ControlPoints::of(&trial, job.extra_points)?;
     let decoding = job
         .unwrap
         .session_decoding(&session, DecodeParams::default())?;

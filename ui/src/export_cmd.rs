@@ -72,26 +72,31 @@ pub struct ExportArgs {
     pub unwrap: UnwrapArgs,
 }
 
-/// The session's saved control points and the extra ones: names and pixels.
-fn control_points(
-    trial: &TrialJson,
-    extra: &[(f64, f64)],
-) -> Result<(Vec<String>, Vec<(f64, f64)>)> {
-    let mut names: Vec<String> = trial
-        .control_points
-        .iter()
-        .map(|p| p.name.clone())
-        .collect();
-    let mut pixels: Vec<(f64, f64)> = trial.control_points.iter().map(|p| (p.u, p.v)).collect();
-    for &(u, v) in extra {
-        names.push(format!("point ({u}, {v})"));
-        pixels.push((u, v));
+/// A session's control points: its saved ones, then those given with `--point`.
+pub struct ControlPoints {
+    pub names: Vec<String>,
+    pub pixels: Vec<(f64, f64)>,
+}
+
+impl ControlPoints {
+    /// The points of `trial` and `extra`; an error when there are none.
+    pub fn of(trial: &TrialJson, extra: &[(f64, f64)]) -> Result<Self> {
+        let mut names: Vec<String> = trial
+            .control_points
+            .iter()
+            .map(|p| p.name.clone())
+            .collect();
+        let mut pixels: Vec<(f64, f64)> = trial.control_points.iter().map(|p| (p.u, p.v)).collect();
+        for &(u, v) in extra {
+            names.push(format!("point ({u}, {v})"));
+            pixels.push((u, v));
+        }
+        ensure!(
+            !pixels.is_empty(),
+            "no control points: session.json's trial has none, and no --point was given"
+        );
+        Ok(Self { names, pixels })
     }
-    ensure!(
-        !pixels.is_empty(),
-        "no control points: session.json's trial has none; add them with --point U,V"
-    );
-    Ok((names, pixels))
 }
 
 /// Opens and tracks a session for the trajectory exports.
@@ -101,7 +106,7 @@ fn tracked(
 ) -> Result<(Session, TrialJson, Vec<String>, SessionTracks)> {
     let session = Session::open(session_dir)?;
     let trial = session.manifest.trial.clone().unwrap_or_default();
-    let (names, pixels) = control_points(&trial, &args.points)?;
+    let ControlPoints { names, pixels } = ControlPoints::of(&trial, &args.points)?;
     let decoding = args
         .unwrap
         .session_decoding(&session, DecodeParams::default())?;
