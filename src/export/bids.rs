@@ -311,4 +311,59 @@ mod tests {
             .expect_err("no subject")
             .contains("subject"));
     }
+
+    #[test]
+    fn a_trial_is_written_with_missing_samples_as_n_a_and_a_channel_per_axis() {
+        use crate::export::{MotionFrame, PointTrack};
+        let dir = tempfile::tempdir().expect("temp dir");
+        let trial = TrialJson {
+            subject_id: "P-7".into(),
+            condition: "rest".into(),
+            operator_notes: "moved at 1 s".into(),
+            ..TrialJson::default()
+        };
+        let motion = TrialMotion {
+            sampling_hz: 121.0,
+            times_s: vec![0.0, 1.0 / 121.0, 2.0 / 121.0],
+            points: vec![PointTrack {
+                name: "index tip".into(),
+                positions_mm: vec![Some([1.0, 2.0, 3.0]), None, Some([1.5, 2.5, -3.25])],
+            }],
+            frame: MotionFrame::Table,
+        };
+        let run = next_free_run(dir.path(), &trial).expect("run");
+        assert_eq!(run, 1);
+        let name = BidsName::of(&trial, run).expect("name");
+        let tsv = write_trial(dir.path(), &name, &trial, &motion, "test").expect("written");
+        assert_eq!(
+            std::fs::read_to_string(&tsv).expect("tsv"),
+            "1.0000\t2.0000\t3.0000\nn/a\tn/a\tn/a\n1.5000\t2.5000\t-3.2500\n"
+        );
+        let folder = dir.path().join("sub-P7/motion");
+        let channels = std::fs::read_to_string(
+            folder.join("sub-P7_task-rest_tracksys-cps_run-1_channels.tsv"),
+        )
+        .expect("channels");
+        assert_eq!(channels.lines().count(), 4);
+        assert!(channels.contains("indextip_z\tz\tPOS\tindex tip\tmm\ttable"));
+        let sidecar: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(
+                folder.join("sub-P7_task-rest_tracksys-cps_run-1_motion.json"),
+            )
+            .expect("sidecar"),
+        )
+        .expect("json");
+        assert_eq!(sidecar["SamplingFrequency"], 121.0);
+        assert_eq!(sidecar["POSChannelCount"], 3);
+        assert_eq!(sidecar["SubjectArtefactDescription"], "moved at 1 s");
+        assert!(folder.join("sub-P7_task-rest_run-1_events.tsv").is_file());
+        // The next trial of the same subject and task takes run 2.
+        assert_eq!(next_free_run(dir.path(), &trial).expect("run"), 2);
+        write_dataset_files(dir.path(), &["P7".into()], "test").expect("top level");
+        write_dataset_files(dir.path(), &["P1".into()], "test").expect("top level again");
+        assert_eq!(
+            std::fs::read_to_string(dir.path().join("participants.tsv")).expect("tsv"),
+            "participant_id\nsub-P1\nsub-P7\n"
+        );
+    }
 }

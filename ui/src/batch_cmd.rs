@@ -4,9 +4,12 @@
 //! `report.png`, `trial.c3d`, `rows.csv`), and the study gets one table, `RESULTS/study.csv`.
 //!
 //! - **Workers.** Sessions run on `--jobs` named threads (`batch-N`) that take the next session
-//!   from a shared counter and report over a bounded channel; each decode spreads its rows over
-//!   every core through rayon, so one worker per two cores (at least one) keeps them busy
-//!   without each decode waiting for the others' (`docs/benchmarks.md` has the measurement).
+//!   from a shared counter and report over a bounded channel. Each decode spreads its rows over
+//!   the cores through rayon, but a session also has serial parts (reading and unpacking frames,
+//!   tracking, the analysis, the report), so one worker per core (at most 8, for memory: a
+//!   decoder holds a few hundred MB at full resolution) keeps the cores busier than one session
+//!   at a time: 8 sessions on 2 cores took 7 % less time with 2 workers than with 1
+//!   (`docs/benchmarks.md`).
 //! - **Resumable.** A session whose `rows.csv` (written last) is newer than every file of the
 //!   session is skipped and its rows are read back, unless `--force`. With `--bids` its BIDS
 //!   files must exist too.
@@ -16,14 +19,16 @@
 //! - **Shards.** `--shard I/N` does the I-th of N deterministic parts (`study::shard`) and writes
 //!   `study-shard-I-of-N.csv`; `batch --merge RESULTS` joins them into `study.csv` (and with
 //!   `--bids DIR` writes that dataset's top-level files). `docs/cluster.md` runs it under Slurm.
-//! - Every file is written atomically, so an interrupted run leaves no half-written output.
+//! - **Ctrl-C** stops the sessions in progress between frames; they write nothing more and are
+//!   not marked done, no study table is written, and every file already written is complete
+//!   (atomic writes). The next run finishes the study.
 
 use crate::batch_session::{process_session, SessionJob, SessionOutputs};
 use crate::unwrap_args::UnwrapArgs;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::sync_channel;
 use tremorscan::study::{self, Shard, StudyRow};
 
@@ -44,7 +49,7 @@ pub struct BatchArgs {
     /// Process every session again, even those whose outputs are up to date.
     #[arg(long)]
     pub force: bool,
-    /// Sessions processed at once (default: one per two cores, at least one).
+    /// Sessions processed at once (default: one per core, at most 8).
     #[arg(long)]
     pub jobs: Option<usize>,
     /// Also write the trajectories as a Motion-BIDS dataset under this folder.
@@ -62,9 +67,9 @@ pub fn software_version() -> String {
     format!("tremorscan {}", env!("CARGO_PKG_VERSION"))
 }
 
-/// The default worker count: one per two cores, at least one.
+/// The default worker count: one per core, at most 8 (module header).
 pub fn default_jobs() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| (n.get() / 2).max(1))
+    std::thread::available_parallelism().map_or(1, |n| n.get().min(8))
 }
 
 pub fn run_batch(args: &BatchArgs) -> Result<()> {
@@ -111,6 +116,18 @@ pub fn run_batch(args: &BatchArgs) -> Result<()> {
     );
     let version = software_version();
     let next = AtomicUsize::new(0);
+    // Ctrl-C: the workers stop between frames, write nothing more and take no new session;
+    // every file already written is complete (atomic writes). A second Ctrl-C ends at once.
+    let stop: &'static AtomicBool = Box::leak(Box::new(AtomicBool::new(false)));
+    let interrupt = ctrlc::set_handler(move || {
+        if stop.swap(true, Ordering::Relaxed) {
+            std::process::exit(130);
+        }
+        eprintln!("\ninterrupted: stopping the sessions in progress (Ctrl-C again to quit now)");
+    });
+    if let Err(e) = interrupt {
+        eprintln!("warning: Ctrl-C will end the batch without cleaning up: {e}");
+    }
     let (tx, rx) = sync_channel::<(usize, SessionOutputs)>(jobs);
     let mut outcomes: Vec<Option<SessionOutputs>> = vec![None; mine.len()];
     std::thread::scope(|scope| -> Result<()> {
@@ -120,6 +137,9 @@ pub fn run_batch(args: &BatchArgs) -> Result<()> {
             std::thread::Builder::new()
                 .name(format!("batch-{w}"))
                 .spawn_scoped(scope, move || loop {
+                    if stop.load(Ordering::Relaxed) {
+                        break;
+                    }
                     let k = next.fetch_add(1, Ordering::Relaxed);
                     let Some(relative) = mine.get(k) else { break };
                     let job = SessionJob {
@@ -132,6 +152,7 @@ pub fn run_batch(args: &BatchArgs) -> Result<()> {
                         bids_run: runs.get(relative).copied(),
                         force: args.force,
                         software_version: version,
+                        stop,
                     };
                     if tx.send((k, process_session(&job))).is_err() {
                         break;
@@ -141,7 +162,11 @@ pub fn run_batch(args: &BatchArgs) -> Result<()> {
         }
         drop(tx);
         for (k, outputs) in rx {
-            if let (Some(error), false) = (&outputs.error, outputs.skipped) {
+            if let (Some(error), false, false) = (
+                &outputs.error,
+                outputs.skipped,
+                stop.load(Ordering::Relaxed),
+            ) {
                 bar.suspend(|| eprintln!("{}: {error}", mine[k].display()));
             }
             bar.inc(1);
@@ -150,6 +175,17 @@ pub fn run_batch(args: &BatchArgs) -> Result<()> {
         Ok(())
     })?;
     bar.finish_and_clear();
+    if stop.load(Ordering::Relaxed) {
+        let done = outcomes
+            .iter()
+            .flatten()
+            .filter(|o| o.error.as_deref() != Some("interrupted"))
+            .count();
+        bail!(
+            "interrupted after {done} of {} sessions; no study table was written (run the same command again to finish: finished sessions are skipped)",
+            mine.len()
+        );
+    }
 
     let outcomes: Vec<SessionOutputs> = outcomes.into_iter().flatten().collect();
     let rows: Vec<StudyRow> = outcomes.iter().flat_map(|o| o.rows.clone()).collect();

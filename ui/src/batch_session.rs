@@ -9,7 +9,7 @@
 //! `--force`; the error is the same until then.
 
 use crate::export_cmd::ControlPoints;
-use crate::tremor_cmd::{analyze_tracks, track_session, PointOutcome};
+use crate::tremor_cmd::{analyze_tracks, track_session, Feedback, PointOutcome};
 use crate::unwrap_args::UnwrapArgs;
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
@@ -32,6 +32,8 @@ pub struct SessionJob<'a> {
     pub bids_run: Option<u32>,
     pub force: bool,
     pub software_version: &'a str,
+    /// Set on Ctrl-C: the session stops between frames and is not marked done.
+    pub stop: &'a std::sync::atomic::AtomicBool,
 }
 
 /// What came of one session.
@@ -86,6 +88,14 @@ pub fn process_session(job: &SessionJob<'_>) -> SessionOutputs {
     }
     let (rows, error) = match analyse(job, &session_dir, &dir) {
         Ok(rows) => (rows, None),
+        // Interrupted: nothing marks the session as done, so the next run does it.
+        Err(_) if job.stop.load(std::sync::atomic::Ordering::Relaxed) => {
+            return SessionOutputs {
+                rows: Vec::new(),
+                skipped: false,
+                error: Some("interrupted".into()),
+            };
+        }
         Err(e) => {
             let why = format!("{e:#}");
             let trial = tremorscan::jsonfile::read::<Manifest>(&session_dir.join("session.json"))
@@ -193,7 +203,13 @@ fn analyse(job: &SessionJob<'_>, session_dir: &Path, dir: &Path) -> Result<Vec<S
         .unwrap
         .session_decoding(&session, DecodeParams::default())?;
     let params = decoding.params;
-    let tracked = track_session(&session, &pixels, None, params, false)?;
+    let tracked = track_session(
+        &session,
+        &pixels,
+        None,
+        params,
+        Feedback::Quiet { stop: job.stop },
+    )?;
     let outcomes = analyze_tracks(
         frames_averaged(&session.sequence()?, &params),
         &tracked,

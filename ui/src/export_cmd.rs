@@ -9,7 +9,7 @@
 
 use crate::batch_cmd::software_version;
 use crate::progress::Progress;
-use crate::tremor_cmd::{parse_point, track_session, SessionTracks};
+use crate::tremor_cmd::{parse_point, track_session, Feedback, SessionTracks};
 use crate::unwrap_args::UnwrapArgs;
 use anyhow::{bail, ensure, Context, Result};
 use std::path::{Path, PathBuf};
@@ -111,7 +111,13 @@ fn tracked(
         .unwrap
         .session_decoding(&session, DecodeParams::default())?;
     println!("decode: {}", decoding.describe());
-    let tracks = track_session(&session, &pixels, None, decoding.params, true)?;
+    let tracks = track_session(
+        &session,
+        &pixels,
+        None,
+        decoding.params,
+        Feedback::ProgressBar,
+    )?;
     Ok((session, trial, names, tracks))
 }
 

@@ -97,6 +97,16 @@ fn all_pixels(session: &Session, control: &ControlPointArgs) -> Result<Vec<(f64,
     Ok(all)
 }
 
+/// How tracking reports: a progress bar on the terminal, or nothing, stopping as soon as `stop`
+/// is set (a batch interrupted with Ctrl-C).
+#[derive(Clone, Copy)]
+pub enum Feedback<'a> {
+    ProgressBar,
+    Quiet {
+        stop: &'a std::sync::atomic::AtomicBool,
+    },
+}
+
 /// The control points tracked through a session.
 pub struct SessionTracks {
     /// Per point: its samples, one per window (refused windows included, as invalid samples).
@@ -148,13 +158,13 @@ impl SessionTracks {
 }
 
 /// Tracks `points` through every window of `session` decoded with `params`; `vertical` as
-/// `--vertical` takes it. `show_progress` draws a progress bar (when stderr is a terminal).
+/// `--vertical` takes it. `feedback`: a progress bar, or quiet with a stop flag (a batch).
 pub fn track_session(
     session: &Session,
     points: &[(f64, f64)],
     vertical: Option<&str>,
     params: DecodeParams,
-    show_progress: bool,
+    feedback: Feedback<'_>,
 ) -> Result<SessionTracks> {
     let sequence = session.sequence()?;
     let (w, h) = session.camera_size();
@@ -190,8 +200,14 @@ pub fn track_session(
         }
     };
     let mut table = None;
-    let mut progress = show_progress.then(|| Progress::new("tracking", session.frame_count()));
+    let mut progress = matches!(feedback, Feedback::ProgressBar)
+        .then(|| Progress::new("tracking", session.frame_count()));
     for i in 0..session.frame_count() {
+        if let Feedback::Quiet { stop } = feedback {
+            if stop.load(std::sync::atomic::Ordering::Relaxed) {
+                bail!("interrupted");
+            }
+        }
         let frame = session.load_frame(i)?;
         let centre_s = frame.time_s - (window - 1.0) / 2.0 / fps.max(1e-3);
         let decoded = match decoder.push(&frame)? {
@@ -318,7 +334,7 @@ pub fn run_track(args: &TrackArgs) -> Result<()> {
         &points,
         args.control.vertical.as_deref(),
         params,
-        true,
+        Feedback::ProgressBar,
     )?;
     let named: Vec<TrackColumn<'_>> = tracks
         .iter()
@@ -429,7 +445,7 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
         &points,
         args.control.vertical.as_deref(),
         params,
-        true,
+        Feedback::ProgressBar,
     )?;
     let names: Vec<String> = points
         .iter()

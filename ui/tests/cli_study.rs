@@ -87,6 +87,14 @@ fn make_study(study: &Path) {
         }
         ok(&args);
     }
+    // A projector glitch: ten dark frames, so the windows over them have no code and the
+    // points no position there (missing samples, to be written as missing).
+    for k in 60..70 {
+        let dark =
+            tremorscan::frame::Frame::from_data(640, 400, 3, vec![8; 640 * 400 * 3]).unwrap();
+        let file = study.join(format!("P-001/rest-right/frames/{k:06}.png"));
+        tremorscan::session::frames::write_png(&file, &dark).unwrap();
+    }
     // A session.json that is not JSON.
     let bad = study.join("P-003/broken-manifest");
     std::fs::create_dir_all(&bad).unwrap();
@@ -248,6 +256,38 @@ fn a_study_is_batched_resumed_sharded_and_exported() {
         s(&c3d),
     ]);
     assert!(String::from_utf8_lossy(&refused.stderr).contains("no control points"));
+
+    // A window sequence: one PLY and one depth TIFF per window from 50 to 53.
+    let clouds = dir.join("clouds");
+    let depths = dir.join("depths");
+    ok(&[
+        "export",
+        s(&session),
+        "--clouds",
+        s(&clouds),
+        "--depth-tiffs",
+        s(&depths),
+        "--from",
+        "50",
+        "--to",
+        "53",
+    ]);
+    for f in 50..=53 {
+        let ply = std::fs::read(clouds.join(format!("cloud-{f:06}.ply"))).unwrap();
+        assert!(
+            ply.starts_with(b"ply\n") && ply.len() > 100_000,
+            "window {f}"
+        );
+        let (w, h, depth) =
+            tremorscan::export::read_depth_tiff(&depths.join(format!("depth-{f:06}.tiff")))
+                .unwrap();
+        assert_eq!((w, h), (640, 400));
+        let valid = depth.iter().filter(|d| d.is_finite()).count();
+        assert!(valid > w * h / 2, "window {f}: {valid} valid");
+    }
+    assert_eq!(std::fs::read_dir(&clouds).unwrap().count(), 4);
+    let bad = tremorscan(&["export", s(&session), "--clouds", s(&clouds), "--from", "1"]);
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--from 1"));
 }
 
 fn walk(dir: &Path) -> Vec<std::path::PathBuf> {
@@ -349,6 +389,14 @@ print(len(rows), points.shape[1], missing)
             String::from_utf8_lossy(&out.stderr)
         );
         let counts = String::from_utf8_lossy(&out.stdout);
-        assert!(counts.starts_with("180 2 "), "{session}: {counts}");
+        let counts: Vec<usize> = counts
+            .split_whitespace()
+            .map(|c| c.parse().unwrap())
+            .collect();
+        assert_eq!(&counts[..2], [180, 2], "{session}");
+        if session == "P-001/rest-right" {
+            // The dark frames' windows: both points missing in each.
+            assert!(counts[2] >= 2 * 3 * 10, "{session}: {counts:?}");
+        }
     }
 }
