@@ -9,7 +9,8 @@
 //! `--force`; the error is the same until then.
 
 use crate::export_cmd::ControlPoints;
-use crate::tremor_cmd::{analyze_tracks, track_session, Feedback, PointOutcome};
+use crate::session_tracking::{track_session, Feedback};
+use crate::tremor_cmd::{analyze_tracks, PointOutcome};
 use crate::unwrap_args::UnwrapArgs;
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;

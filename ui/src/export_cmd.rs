@@ -9,7 +9,8 @@
 
 use crate::batch_cmd::software_version;
 use crate::progress::Progress;
-use crate::tremor_cmd::{parse_point, track_session, Feedback, SessionTracks};
+use crate::session_tracking::{track_session, Feedback, SessionTracks};
+use crate::tremor_cmd::parse_point;
 use crate::unwrap_args::UnwrapArgs;
 use anyhow::{bail, ensure, Context, Result};
 use std::path::{Path, PathBuf};

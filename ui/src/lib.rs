@@ -16,6 +16,7 @@ pub mod progress;
 pub mod render;
 pub mod report_png;
 pub mod session_cmd;
+pub mod session_tracking;
 pub mod simulate_calibration;
 pub mod snapshot;
 pub mod sweep;
