@@ -62,34 +62,21 @@ pub fn write_table(path: &Path, rows: &[StudyRow]) -> Result<(), StudyError> {
             .cmp(&b.session)
             .then(a.point_index.cmp(&b.point_index))
     });
-    let mut writer = csv::Writer::from_writer(Vec::new());
-    for row in &sorted {
-        writer.serialize(row).map_err(|e| StudyError::Table {
-            path: path.to_path_buf(),
-            why: e.to_string(),
-        })?;
-    }
-    let bytes = writer.into_inner().map_err(|e| StudyError::Table {
+    let table_error = |e: &dyn std::fmt::Display| StudyError::Table {
         path: path.to_path_buf(),
         why: e.to_string(),
-    })?;
-    // An empty table still gets its header, so a reader sees the columns.
-    let bytes = if sorted.is_empty() {
-        let mut header = csv::Writer::from_writer(Vec::new());
-        header
-            .write_record(table_columns())
-            .and_then(|()| header.flush().map_err(csv::Error::from))
-            .map_err(|e| StudyError::Table {
-                path: path.to_path_buf(),
-                why: e.to_string(),
-            })?;
-        header.into_inner().map_err(|e| StudyError::Table {
-            path: path.to_path_buf(),
-            why: e.to_string(),
-        })?
-    } else {
-        bytes
     };
+    // The header is written by hand, so an empty table has it too.
+    let mut writer = csv::WriterBuilder::new()
+        .has_headers(false)
+        .from_writer(Vec::new());
+    writer
+        .write_record(table_columns())
+        .map_err(|e| table_error(&e))?;
+    for row in &sorted {
+        writer.serialize(row).map_err(|e| table_error(&e))?;
+    }
+    let bytes = writer.into_inner().map_err(|e| table_error(&e))?;
     crate::jsonfile::write_bytes_atomic(path, &bytes).map_err(|e| StudyError::Table {
         path: path.to_path_buf(),
         why: e.to_string(),
