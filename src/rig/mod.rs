@@ -20,6 +20,7 @@ pub mod optics;
 pub mod primitives;
 pub mod render;
 pub mod scene;
+pub mod skin;
 pub mod tremor_eval;
 pub mod truth;
 

@@ -42,6 +42,9 @@ pub struct HandPart {
     pub shape: Shape,
     pub camera_box: PixelBox,
     pub projector_box: PixelBox,
+    /// Maps the part's points (hand frame) to where they sit on the hand at rest: the frame the
+    /// skin's texture is printed in, so the texture moves with the skin.
+    pub rest_from_hand: nalgebra::Isometry3<f64>,
 }
 
 impl PixelBox {

@@ -4,7 +4,7 @@
 
 use super::noise::normal_pair;
 use super::optics;
-use super::scene::{Material, PosedScene, SKIN_ALBEDO};
+use super::scene::{Material, PosedScene};
 use super::truth::{surface, GroundTruth};
 use super::VirtualRig;
 use crate::pattern::PatternEntry;
@@ -241,7 +241,7 @@ fn shade_pixel(ctx: &Context<'_>, rays: &[[f32; 3]], pixel: usize) -> Sample {
         sample.depth_mm = point.z as f32;
         let skin = hit.material == Material::Skin;
         (sample.surface, albedo) = match hit.material {
-            Material::Skin => (surface::SKIN, SKIN_ALBEDO),
+            Material::Skin => (surface::SKIN, ctx.posed.skin_albedo(&hit)),
             Material::Table => (surface::TABLE, ctx.posed.table_albedo(&point)),
             Material::Board => (surface::BOARD, board_albedo(ctx, rays, pixel, &dir)),
         };

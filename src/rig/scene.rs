@@ -17,6 +17,7 @@
 
 use super::board::Chessboard;
 use super::primitives::{Capsule, Ellipsoid, HandPart, PixelBox, Shape};
+use super::skin::skin_texture;
 use crate::geometry::{LensModel, Pose};
 use nalgebra::{Isometry3, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
 use std::f64::consts::TAU;
@@ -77,6 +78,8 @@ pub struct SceneConfig {
     pub hand_height_mm: f64,
     /// A calibration chessboard in front of the table, if any.
     pub board: Option<Chessboard>,
+    /// RMS relative variation of the skin's albedo (its texture, `rig::skin`); 0 is uniform.
+    pub skin_texture_contrast: f64,
 }
 
 impl SceneConfig {
@@ -90,6 +93,7 @@ impl SceneConfig {
             hand: Some(Tremor::flexion(5.3, 2.0, 0.3)),
             hand_height_mm: 45.0,
             board: None,
+            skin_texture_contrast: SKIN_TEXTURE_CONTRAST,
         }
     }
 
@@ -103,6 +107,7 @@ impl SceneConfig {
             hand: None,
             hand_height_mm: 0.0,
             board: None,
+            skin_texture_contrast: 0.0,
         }
     }
 
@@ -135,12 +140,18 @@ pub const POINT_NAMES: [&str; 6] = [
     "back_of_hand",
 ];
 
+/// The skin's texture contrast of the trembling hand: faint, as skin is at 0.4 mm per pixel.
+pub const SKIN_TEXTURE_CONTRAST: f64 = 0.06;
+
 /// A ray hit.
 #[derive(Debug, Clone, Copy)]
 pub struct Hit {
     pub distance_mm: f64,
     pub normal: V3,
     pub material: Material,
+    /// Where the hit lies on the hand at rest (skin only; zero elsewhere), mm: what the skin's
+    /// texture is a function of.
+    pub rest_point_mm: V3,
 }
 
 /// The scene posed at one instant.
@@ -151,6 +162,7 @@ pub struct PosedScene {
     pub table_texture: bool,
     table_albedo: [f64; 3],
     board: Option<Chessboard>,
+    skin_texture_contrast: f64,
     parts: Vec<HandPart>,
     /// Rigid pose of the hand frame (in which `parts` are built) in the camera frame.
     camera_from_hand: Isometry3<f64>,
@@ -188,6 +200,7 @@ impl Scene {
             table_texture: c.table_texture,
             table_albedo: c.table_albedo,
             board: c.board,
+            skin_texture_contrast: c.skin_texture_contrast,
             parts: Vec::with_capacity(11),
             camera_from_hand: Isometry3::identity(),
             points: Vec::with_capacity(POINT_NAMES.len()),
@@ -199,6 +212,8 @@ impl Scene {
         let lift = tremor.hand_amplitude_mm * omega_t.sin();
         let palm_centre = V3::new(45.0, 0.0, c.table_distance_mm - c.hand_height_mm + lift);
         let palm = Ellipsoid::new(palm_centre, V3::new(46.0, 42.0, 12.0));
+        // The hand at rest is the hand before its lift: the palm and thumb move rigidly with it.
+        let rest_from_lifted = Isometry3::translation(0.0, 0.0, -lift);
         let up = V3::new(0.0, 0.0, -1.0);
         let mut tips = Vec::with_capacity(5);
         for &(kx, ky, l1, l2, radius, phase) in &FINGERS {
@@ -216,22 +231,33 @@ impl Scene {
             let rot = Rotation3::from_axis_angle(&Vector3::y_axis(), alpha);
             let joint = knuckle + rot * rest_d1 * l1;
             let tip = joint + rot * rest_d2 * l2;
-            posed.push(Shape::Capsule(Capsule::new(knuckle, joint, radius)));
-            posed.push(Shape::Capsule(Capsule::new(joint, tip, radius)));
+            let unflex = Isometry3::from_parts(
+                Translation3::from(knuckle),
+                UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -alpha),
+            ) * Translation3::from(-knuckle);
+            let rest = rest_from_lifted * unflex;
+            posed.push(Shape::Capsule(Capsule::new(knuckle, joint, radius)), rest);
+            posed.push(Shape::Capsule(Capsule::new(joint, tip, radius)), rest);
             tips.push(surface_above(joint, tip, radius, 0.8, up));
         }
         // Thumb: two segments towards +y, trembling with the hand only.
         let base = palm_centre + V3::new(-8.0, 34.0, 3.0);
         let joint = base + V3::new(-22.0, 22.0, 4.0);
         let tip = joint + V3::new(-24.0, 8.0, 6.0);
-        posed.push(Shape::Capsule(Capsule::new(base, joint, 10.5)));
-        posed.push(Shape::Capsule(Capsule::new(joint, tip, 9.5)));
+        posed.push(
+            Shape::Capsule(Capsule::new(base, joint, 10.5)),
+            rest_from_lifted,
+        );
+        posed.push(
+            Shape::Capsule(Capsule::new(joint, tip, 9.5)),
+            rest_from_lifted,
+        );
         tips.push(surface_above(joint, tip, 9.5, 0.8, up));
         posed.points.extend(tips);
         posed
             .points
             .push(palm_centre + V3::new(0.0, 0.0, -palm.radii.z));
-        posed.push(Shape::Ellipsoid(palm));
+        posed.push(Shape::Ellipsoid(palm), rest_from_lifted);
         // Sway and roll: the hand frame about the forearm axis through the palm centre.
         let roll = tremor.roll_amplitude_deg.to_radians() * (omega_t + TAU / 8.0).sin();
         let sway = tremor.sway_amplitude_mm * (omega_t + TAU / 4.0).sin();
@@ -255,12 +281,19 @@ fn surface_above(a: V3, b: V3, radius: f64, s: f64, up: V3) -> V3 {
 }
 
 impl PosedScene {
-    fn push(&mut self, shape: Shape) {
+    fn push(&mut self, shape: Shape, rest_from_hand: Isometry3<f64>) {
         self.parts.push(HandPart {
             shape,
             camera_box: PixelBox::EVERYWHERE,
             projector_box: PixelBox::EVERYWHERE,
+            rest_from_hand,
         });
+    }
+
+    /// The skin's albedo (R, G, B) at a skin hit: the skin's colour times its texture there.
+    pub fn skin_albedo(&self, hit: &Hit) -> [f64; 3] {
+        let k = skin_texture(&hit.rest_point_mm, self.skin_texture_contrast);
+        SKIN_ALBEDO.map(|a| a * k)
     }
 
     /// Computes each hand part's bounding box in the camera and projector images, so that rays
@@ -294,6 +327,7 @@ impl PosedScene {
                     distance_mm: t,
                     normal: self.table_normal,
                     material: Material::Table,
+                    rest_point_mm: V3::zeros(),
                 });
             }
         }
@@ -304,6 +338,7 @@ impl PosedScene {
                         distance_mm: t,
                         normal: board.normal_in_camera(),
                         material: Material::Board,
+                        rest_point_mm: V3::zeros(),
                     });
                 }
             }
@@ -317,10 +352,12 @@ impl PosedScene {
             if let Some((t, normal)) = part.shape.intersect(&origin_in_hand, &dir_in_hand) {
                 if t < limit {
                     limit = t;
+                    let in_hand = Point3::from(origin_in_hand + dir_in_hand * t);
                     best = Some(Hit {
                         distance_mm: t,
                         normal: self.camera_from_hand.rotation * normal,
                         material: Material::Skin,
+                        rest_point_mm: part.rest_from_hand.transform_point(&in_hand).coords,
                     });
                 }
             }
@@ -480,6 +517,54 @@ mod tests {
         let later = swaying.at(0.05).points[5];
         let roll = 3f64.to_radians() * (TAU * 3.0 / 8.0).sin();
         assert!((later.y - 12.0 * roll.sin()).abs() < 1e-9, "{later:?}");
+    }
+
+    #[test]
+    fn the_skin_texture_moves_with_the_skin() {
+        let scene = Scene::new(SceneConfig {
+            hand: Some(Tremor {
+                sway_amplitude_mm: 4.0,
+                roll_amplitude_deg: 5.0,
+                ..Tremor::flexion(4.2, 3.0, 0.5)
+            }),
+            ..SceneConfig::trembling_hand()
+        });
+        // Every tracked point is a material point: the ray to it at any time hits the skin at
+        // the same place on the hand at rest, so it carries the same texture.
+        let at_rest: Vec<V3> = {
+            let posed = scene.at(0.0);
+            posed.points[..5]
+                .iter()
+                .map(|q| {
+                    let hit = posed.intersect(&V3::zeros(), &q.normalize(), (0.0, 0.0));
+                    hit.unwrap().rest_point_mm
+                })
+                .collect()
+        };
+        for t in [0.013, 0.05, 0.11, 0.2] {
+            let posed = scene.at(t);
+            for (q, rest) in posed.points[..5].iter().zip(&at_rest) {
+                let hit = posed
+                    .intersect(&V3::zeros(), &q.normalize(), (0.0, 0.0))
+                    .unwrap();
+                assert!((hit.rest_point_mm - rest).norm() < 1e-6, "t {t}: {q:?}");
+                assert_eq!(posed.skin_albedo(&hit), scene.at(0.0).skin_albedo(&hit));
+            }
+        }
+        // And the texture is there: albedo differs between nearby points on the back of the hand.
+        let posed = scene.at(0.0);
+        let albedo = |dx: f64| {
+            let q = posed.points[5] + V3::new(dx, 0.0, 0.0);
+            let hit = posed
+                .intersect(&V3::zeros(), &q.normalize(), (0.0, 0.0))
+                .unwrap();
+            posed.skin_albedo(&hit)[0]
+        };
+        let spread: Vec<f64> = (0..8).map(|i| albedo(f64::from(i))).collect();
+        let (lo, hi) = spread
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        assert!(hi / lo > 1.03, "{spread:?}");
     }
 
     #[test]
