@@ -21,6 +21,7 @@ pub mod primitives;
 pub mod render;
 pub mod scene;
 pub mod skin;
+pub mod skin_eval;
 pub mod tremor_eval;
 pub mod truth;
 

@@ -141,7 +141,7 @@ pub const POINT_NAMES: [&str; 6] = [
 ];
 
 /// The skin's texture contrast of the trembling hand: faint, as skin is at 0.4 mm per pixel.
-pub const SKIN_TEXTURE_CONTRAST: f64 = 0.06;
+pub const SKIN_TEXTURE_CONTRAST: f64 = 0.03;
 
 /// A ray hit.
 #[derive(Debug, Clone, Copy)]

@@ -104,6 +104,7 @@ pub fn fingertip_tremor(
                 centre_s
             },
             frame: i as usize,
+            pixel: Some(pixel),
             position_mm,
         });
     }

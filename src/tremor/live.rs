@@ -2,29 +2,44 @@
 //! (the last [`LiveTracker::history_s`] seconds of scene time), from which the GUI draws the
 //! displacement plot and the tremor panel.
 //!
-//! A point is a camera pixel, as in [`super::track`]; dragging it moves the pixel and starts its
-//! history anew. When scene time goes backwards (a replay was sought back) every history is
-//! cleared, so a series never mixes two passes.
+//! A point is placed at a camera pixel and, by default, follows the skin it was placed on
+//! ([`super::control`]); in fixed-pixel mode it stays at the pixel, as in [`super::track`].
+//! Dragging it places it anew and starts its history anew. When scene time goes backwards (a
+//! replay was sought back) every history is cleared and every point placed anew at its pixel,
+//! so a series never mixes two passes.
 
 use super::analysis::{analyze, AnalysisOptions, TremorReport};
-use super::track::{displacements, locate, TrackOptions, TrackSample};
+use super::control::{ControlPoint, PointMode};
+use super::follow::{FollowOptions, TextureImage};
+use super::track::{displacements, TrackOptions, TrackSample};
 use super::TremorError;
 use crate::triangulate::PointCloud;
 use nalgebra::Vector3;
 use std::collections::VecDeque;
 
 /// One control point and its recent samples.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct LivePoint {
     /// Stable identity (names can change).
     pub id: u64,
     pub name: String,
-    /// Camera pixel, (u, v).
+    /// Camera pixel the point was placed at, (u, v).
     pub pixel: (f64, f64),
     pub samples: VecDeque<TrackSample>,
+    control: ControlPoint,
 }
 
 impl LivePoint {
+    /// The pixel the point is at now (it moves with the skin when following it).
+    pub fn current_pixel(&self) -> (f64, f64) {
+        self.control.pixel()
+    }
+
+    /// Why the point measures nothing, when its skin shows too little texture to follow.
+    pub fn follow_error(&self) -> Option<String> {
+        self.control.error().map(ToString::to_string)
+    }
+
     /// Times (s) and displacements along `axis` (mm, relative to the median position; `None`
     /// where the point was not measured) of the history.
     pub fn displacement_series(&self, axis: &Vector3<f64>) -> (Vec<f64>, Vec<Option<f64>>) {
@@ -56,6 +71,10 @@ pub struct LiveTracker {
     /// Scene seconds of history kept per point.
     pub history_s: f64,
     pub options: TrackOptions,
+    pub follow: FollowOptions,
+    /// Whether new points follow the skin or stay at their pixel ([`LiveTracker::set_mode`]).
+    mode: PointMode,
+    image: TextureImage,
     /// How the figures of the points are computed; its `window_frames` is the source's
     /// ([`crate::pipeline::Pipeline::frames_averaged`]).
     pub analysis: AnalysisOptions,
@@ -71,6 +90,9 @@ impl LiveTracker {
             points: Vec::new(),
             history_s,
             options: TrackOptions::default(),
+            follow: FollowOptions::default(),
+            mode: PointMode::default(),
+            image: TextureImage::default(),
             analysis: AnalysisOptions::default(),
             clouds_seen: 0,
             next_id: 1,
@@ -87,8 +109,22 @@ impl LiveTracker {
             name: name.into(),
             pixel,
             samples: VecDeque::new(),
+            control: ControlPoint::new(pixel, self.mode),
         });
         id
+    }
+
+    pub fn mode(&self) -> PointMode {
+        self.mode
+    }
+
+    /// Follows the skin or stays at fixed pixels: every point is placed anew at its pixel and
+    /// its history restarts.
+    pub fn set_mode(&mut self, mode: PointMode) {
+        if mode != self.mode {
+            self.mode = mode;
+            self.clear_history();
+        }
     }
 
     pub fn remove(&mut self, id: u64) -> bool {
@@ -106,6 +142,7 @@ impl LiveTracker {
         if let Some(p) = self.points.iter_mut().find(|p| p.id == id) {
             p.pixel = pixel;
             p.samples.clear();
+            p.control = ControlPoint::new(pixel, self.mode);
         }
     }
 
@@ -119,6 +156,7 @@ impl LiveTracker {
     pub fn clear_history(&mut self) {
         for p in &mut self.points {
             p.samples.clear();
+            p.control = ControlPoint::new(p.pixel, self.mode);
         }
         self.last_time_s = None;
     }
@@ -131,12 +169,14 @@ impl LiveTracker {
         }
         self.last_time_s = Some(cloud.time_s);
         let oldest_kept = cloud.time_s - self.history_s;
+        if self.mode == PointMode::FollowSkin && !self.points.is_empty() {
+            self.image.fill_from(cloud);
+        }
         for p in &mut self.points {
-            p.samples.push_back(TrackSample {
-                time_s: cloud.time_s,
-                frame,
-                position_mm: locate(cloud, p.pixel, &self.options),
-            });
+            let sample = p
+                .control
+                .measure(cloud, &self.image, frame, &self.options, &self.follow);
+            p.samples.push_back(sample);
             while p.samples.front().is_some_and(|s| s.time_s < oldest_kept) {
                 p.samples.pop_front();
             }
@@ -163,6 +203,7 @@ mod tests {
     #[test]
     fn keeps_the_history_window_and_measures_each_point() {
         let mut t = LiveTracker::new(1.0);
+        t.set_mode(PointMode::FixedPixel);
         let a = t.add("a", (5.0, 5.0));
         let outside = t.add("outside", (50.0, 5.0));
         for k in 0..300 {
@@ -179,6 +220,7 @@ mod tests {
     #[test]
     fn time_going_back_and_moving_a_point_restart_histories() {
         let mut t = LiveTracker::new(5.0);
+        t.set_mode(PointMode::FixedPixel);
         let a = t.add("a", (5.0, 5.0));
         let b = t.add("b", (6.0, 5.0));
         for k in 0..10 {

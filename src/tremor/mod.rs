@@ -1,15 +1,20 @@
-//! Tremor measurement: control points tracked in the organised cloud ([`track`]), the
+//! Tremor measurement: control points tracked in the organised cloud at a fixed pixel
+//! ([`track`]) or following the skin ([`follow`]), the
 //! table's plane and frame ([`table`]), spectral tools
 //! ([`spectrum`]), the clinical figures of a displacement series ([`analysis`]) and points
 //! tracked live for the GUI ([`live`]).
 
 pub mod analysis;
+pub mod control;
+pub mod follow;
 pub mod live;
 pub mod spectrum;
 pub mod table;
 pub mod track;
 
 pub use analysis::{analyze, AnalysisOptions, TremorReport};
+pub use control::{ControlPoint, PointMode};
+pub use follow::{locate_subpixel, FollowError, FollowOptions, SkinFollower, TextureImage};
 pub use live::{LivePoint, LiveTracker};
 pub use table::{fit_table_normal, fit_table_plane, TableFrame, TablePlane};
 pub use track::{displacements, locate, pixel_of, TrackOptions, TrackSample, VerticalAxis};

@@ -121,6 +121,9 @@ pub struct TrackSample {
     pub time_s: f64,
     /// The window's last frame in the session.
     pub frame: usize,
+    /// The camera pixel measured at: the control point's pixel, which moves with the skin
+    /// when it follows it; `None` where the skin patch was lost.
+    pub pixel: Option<(f64, f64)>,
     pub position_mm: Option<[f64; 3]>,
 }
 

@@ -60,6 +60,8 @@ pub struct BatchArgs {
     pub points: Vec<(f64, f64)>,
     #[command(flatten)]
     pub unwrap: UnwrapArgs,
+    #[command(flatten)]
+    pub mode: crate::session_tracking::PointModeArgs,
 }
 
 /// The software version written into every row and export.
@@ -148,6 +150,7 @@ pub fn run_batch(args: &BatchArgs) -> Result<()> {
                         results: out,
                         extra_points: &args.points,
                         unwrap: &args.unwrap,
+                        mode: args.mode.mode(),
                         bids: args.bids.as_deref(),
                         bids_run: runs.get(relative).copied(),
                         force: args.force,

@@ -28,6 +28,8 @@ pub struct SessionJob<'a> {
     pub results: &'a Path,
     pub extra_points: &'a [(f64, f64)],
     pub unwrap: &'a UnwrapArgs,
+    /// Follow the skin or keep fixed pixels.
+    pub mode: tremorscan::tremor::PointMode,
     pub bids: Option<&'a Path>,
     /// The session's BIDS run number (`bids_runs`).
     pub bids_run: Option<u32>,
@@ -207,6 +209,7 @@ fn analyse(job: &SessionJob<'_>, session_dir: &Path, dir: &Path) -> Result<Vec<S
     let tracked = track_session(
         &session,
         &pixels,
+        job.mode,
         None,
         params,
         Feedback::Quiet { stop: job.stop },

@@ -28,6 +28,8 @@ pub struct ExportPointArgs {
     pub points: Vec<(f64, f64)>,
     #[command(flatten)]
     pub unwrap: UnwrapArgs,
+    #[command(flatten)]
+    pub mode: crate::session_tracking::PointModeArgs,
 }
 
 #[derive(clap::Args, Debug, Clone)]
@@ -115,6 +117,7 @@ fn tracked(
     let tracks = track_session(
         &session,
         &pixels,
+        args.mode.mode(),
         None,
         decoding.params,
         Feedback::ProgressBar,

@@ -1,7 +1,9 @@
 //! Control points tracked through a session, as `track`, `analyze`, `batch` and the exports
 //! need them: the session decoded window by window with one sliding decoder (so the motion
-//! model sees the stream), each window triangulated, and each point located robustly in the
-//! organised cloud (`tremor::locate`). A window that does not decode is an invalid sample of
+//! model sees the stream), each window triangulated, and each point measured in the organised
+//! cloud as a `tremor::ControlPoint`: following the skin it was placed on in the first decoded
+//! window (the default), or at its fixed pixel (`--fixed-pixel`). A point whose skin shows too
+//! little texture to follow is an error that names it. A window that does not decode is an invalid sample of
 //! every point, never a skipped one, so the samples stay one per window. The table plane is
 //! fitted in the first decoded window: it gives the vertical axis when asked for (`table`) and
 //! the table frame the exports use.
@@ -13,7 +15,8 @@ use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::export::{MotionFrame, PointTrack, TrialMotion};
 use tremorscan::session::Session;
 use tremorscan::tremor::{
-    fit_table_plane, locate, TableFrame, TablePlane, TrackOptions, TrackSample,
+    fit_table_plane, ControlPoint, FollowOptions, PointMode, TableFrame, TablePlane, TextureImage,
+    TrackOptions, TrackSample,
 };
 use tremorscan::triangulate::{PointCloud, Triangulator};
 
@@ -77,11 +80,32 @@ impl SessionTracks {
     }
 }
 
-/// Tracks `points` through every window of `session` decoded with `params`; `vertical` as
-/// `--vertical` takes it. `feedback`: a progress bar, or quiet with a stop flag (a batch).
+/// `--fixed-pixel`, shared by the commands that track control points.
+#[derive(clap::Args, Debug, Clone, Copy, Default)]
+pub struct PointModeArgs {
+    /// Keep each control point at its camera pixel (the surface passing it), instead of
+    /// following the skin it was placed on.
+    #[arg(long)]
+    pub fixed_pixel: bool,
+}
+
+impl PointModeArgs {
+    pub fn mode(self) -> PointMode {
+        if self.fixed_pixel {
+            PointMode::FixedPixel
+        } else {
+            PointMode::FollowSkin
+        }
+    }
+}
+
+/// Tracks `points` (placed at these pixels, moving as `mode` says) through every window of
+/// `session` decoded with `params`; `vertical` as `--vertical` takes it. `feedback`: a progress
+/// bar, or quiet with a stop flag (a batch).
 pub fn track_session(
     session: &Session,
     points: &[(f64, f64)],
+    mode: PointMode,
     vertical: Option<&str>,
     params: DecodeParams,
     feedback: Feedback<'_>,
@@ -103,6 +127,10 @@ pub fn track_session(
     let triangulator = Triangulator::new(session.stereo_model()?)?;
     let mut cloud = PointCloud::default();
     let mut tracks = vec![Vec::new(); points.len()];
+    let mut controls: Vec<ControlPoint> =
+        points.iter().map(|&p| ControlPoint::new(p, mode)).collect();
+    let mut image = TextureImage::default();
+    let (track_options, follow_options) = (TrackOptions::default(), FollowOptions::default());
     let mut axis = match vertical {
         None => Some(Vector3::z()),
         Some("table") => None,
@@ -144,16 +172,23 @@ pub fn track_session(
                 axis = table.map(|t| t.normal);
             }
         }
-        for (track, &pixel) in tracks.iter_mut().zip(points) {
-            track.push(TrackSample {
-                time_s: if decoded { cloud.time_s } else { centre_s },
-                frame: i,
-                position_mm: if decoded {
-                    locate(&cloud, pixel, &TrackOptions::default())
-                } else {
-                    None
-                },
+        if decoded && mode == PointMode::FollowSkin {
+            image.fill_from(&cloud);
+        }
+        for (k, (track, control)) in tracks.iter_mut().zip(&mut controls).enumerate() {
+            track.push(if decoded {
+                control.measure(&cloud, &image, i, &track_options, &follow_options)
+            } else {
+                TrackSample {
+                    time_s: centre_s,
+                    frame: i,
+                    pixel: None,
+                    position_mm: None,
+                }
             });
+            if let Some(e) = control.error() {
+                bail!("point {k}: {e} (--fixed-pixel)");
+            }
         }
         if let Some(p) = progress.as_mut() {
             p.step(i + 1);

@@ -2,7 +2,7 @@
 //! written as CSV, and their clinical tremor figures as JSON (the tracking itself is
 //! `session_tracking`).
 
-use crate::session_tracking::{track_session, Feedback, SessionTracks};
+use crate::session_tracking::{track_session, Feedback, PointModeArgs, SessionTracks};
 use crate::unwrap_args::UnwrapArgs;
 use anyhow::{Context, Result};
 use nalgebra::Vector3;
@@ -30,6 +30,8 @@ pub struct ControlPointArgs {
     pub vertical: Option<String>,
     #[command(flatten)]
     pub unwrap: UnwrapArgs,
+    #[command(flatten)]
+    pub mode: PointModeArgs,
 }
 
 #[derive(clap::Args, Debug, Clone)]
@@ -38,7 +40,8 @@ pub struct TrackArgs {
     pub session: PathBuf,
     #[command(flatten)]
     pub control: ControlPointArgs,
-    /// CSV output: time_s,frame,point,u,v,x_mm,y_mm,z_mm,displacement_mm,valid.
+    /// CSV output: time_s,frame,point,u,v,x_mm,y_mm,z_mm,displacement_mm,valid (u,v: the
+    /// pixel measured at, which moves with the skin; empty where the point was lost).
     #[arg(long)]
     pub csv: PathBuf,
 }
@@ -98,7 +101,6 @@ fn all_pixels(session: &Session, control: &ControlPointArgs) -> Result<Vec<(f64,
 /// One control point's samples, for [`track_csv`].
 pub struct TrackColumn<'a> {
     pub name: String,
-    pub pixel: (f64, f64),
     pub samples: &'a [TrackSample],
 }
 
@@ -117,13 +119,14 @@ pub fn track_csv(points: &[TrackColumn<'_>], axis: &Vector3<f64>) -> String {
         let d = displacements(p.samples, axis);
         for (s, d) in p.samples.iter().zip(d) {
             let [x, y, z] = s.position_mm.map_or([f64::NAN; 3], |p| p);
+            let (u, v) = s.pixel.unwrap_or((f64::NAN, f64::NAN));
             out.push_str(&format!(
                 "{:.6},{},{},{},{},{},{},{},{},{}\n",
                 s.time_s,
                 s.frame,
                 p.name.replace(',', " "),
-                p.pixel.0,
-                p.pixel.1,
+                fmt(u),
+                fmt(v),
                 fmt(x),
                 fmt(y),
                 fmt(z),
@@ -176,17 +179,16 @@ pub fn run_track(args: &TrackArgs) -> Result<()> {
     let SessionTracks { tracks, axis, .. } = track_session(
         &session,
         &points,
+        args.control.mode.mode(),
         args.control.vertical.as_deref(),
         params,
         Feedback::ProgressBar,
     )?;
     let named: Vec<TrackColumn<'_>> = tracks
         .iter()
-        .zip(&points)
         .enumerate()
-        .map(|(k, (track, &pixel))| TrackColumn {
+        .map(|(k, track)| TrackColumn {
             name: k.to_string(),
-            pixel,
             samples: track,
         })
         .collect();
@@ -287,6 +289,7 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
     let tracked = track_session(
         &session,
         &points,
+        args.control.mode.mode(),
         args.control.vertical.as_deref(),
         params,
         Feedback::ProgressBar,

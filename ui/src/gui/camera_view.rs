@@ -203,8 +203,8 @@ impl CameraView {
                 self.dragging = tracker
                     .points
                     .iter()
-                    .find(|p| to_screen(p.pixel).distance(at) < 10.0)
-                    .map(|p| (p.id, p.pixel));
+                    .find(|p| to_screen(p.current_pixel()).distance(at) < 10.0)
+                    .map(|p| (p.id, p.current_pixel()));
             }
         }
         if let (Some((id, _)), Some(at)) = (self.dragging, response.interact_pointer_pos()) {
@@ -222,7 +222,7 @@ impl CameraView {
                 let on_marker = tracker
                     .points
                     .iter()
-                    .any(|p| to_screen(p.pixel).distance(at) < 6.0);
+                    .any(|p| to_screen(p.current_pixel()).distance(at) < 6.0);
                 if !on_marker {
                     edits.push(PointEdit::Add {
                         pixel: to_pixel(at),
@@ -234,7 +234,7 @@ impl CameraView {
         for p in &tracker.points {
             let pixel = match self.dragging {
                 Some((id, pixel)) if id == p.id => pixel,
-                _ => p.pixel,
+                _ => p.current_pixel(),
             };
             draw_marker(&painter, to_screen(pixel), colours.colour(p.id), &p.name);
         }

@@ -82,9 +82,8 @@ pub fn export_track(path: &Path, tracker: &LiveTracker) -> Result<String> {
     let h = histories(tracker);
     let columns: Vec<TrackColumn<'_>> = h
         .iter()
-        .map(|(name, pixel, samples)| TrackColumn {
+        .map(|(name, _, samples)| TrackColumn {
             name: name.clone(),
-            pixel: *pixel,
             samples,
         })
         .collect();

@@ -4,7 +4,7 @@
 
 use egui::Color32;
 use std::collections::BTreeMap;
-use tremorscan::tremor::LiveTracker;
+use tremorscan::tremor::{LiveTracker, PointMode};
 
 const PALETTE: [Color32; 10] = [
     Color32::from_rgb(230, 40, 40),
@@ -22,10 +22,22 @@ const PALETTE: [Color32; 10] = [
 /// An edit of the control points, asked for by a view or the list.
 #[derive(Debug, Clone, PartialEq)]
 pub enum PointEdit {
-    Add { pixel: (f64, f64) },
-    Move { id: u64, pixel: (f64, f64) },
-    Rename { id: u64, name: String },
-    Remove { id: u64 },
+    Add {
+        pixel: (f64, f64),
+    },
+    Move {
+        id: u64,
+        pixel: (f64, f64),
+    },
+    Rename {
+        id: u64,
+        name: String,
+    },
+    Remove {
+        id: u64,
+    },
+    /// Follow the skin or keep fixed pixels (every point starts anew).
+    Mode(PointMode),
 }
 
 /// Each point's colour slot, kept when other points are removed.
@@ -86,6 +98,10 @@ pub fn apply(
             colours.forget(id);
             None
         }
+        PointEdit::Mode(mode) => {
+            tracker.set_mode(mode);
+            None
+        }
     }
 }
 
@@ -109,6 +125,21 @@ pub fn points_list_ui(
     edits: &mut Vec<PointEdit>,
 ) {
     ui.heading("Control points");
+    let mut follow = tracker.mode() == PointMode::FollowSkin;
+    if ui
+        .checkbox(&mut follow, "Follow the skin")
+        .on_hover_text(
+            "On: each point follows the patch of skin it was placed on. \
+             Off: each point stays at its camera pixel and measures whatever surface passes it.",
+        )
+        .changed()
+    {
+        edits.push(PointEdit::Mode(if follow {
+            PointMode::FollowSkin
+        } else {
+            PointMode::FixedPixel
+        }));
+    }
     if tracker.points.is_empty() {
         ui.label("Click the hand in the camera image or the 3D view to add a point.");
         return;
@@ -135,7 +166,13 @@ pub fn points_list_ui(
                 let depth = p
                     .latest_position_mm()
                     .map_or("—".to_string(), |q| format!("z {:.1} mm", q[2]));
-                ui.label(format!("({:.0}, {:.0}) {depth}", p.pixel.0, p.pixel.1));
+                let (u, v) = p.current_pixel();
+                match p.follow_error() {
+                    Some(why) => ui
+                        .colored_label(Color32::from_rgb(230, 160, 40), "no texture to follow")
+                        .on_hover_text(why),
+                    None => ui.label(format!("({u:.0}, {v:.0}) {depth}")),
+                };
                 if ui
                     .button("Remove")
                     .on_hover_text(format!("Remove {}", p.name))

@@ -1,0 +1,576 @@
+//! Following a patch of skin from window to window, so that a control point measures one
+//! material point of the hand rather than whatever skin passes a fixed camera pixel.
+//!
+//! *The image followed* is the skin's texture, with its shading taken out ([`TextureImage`]):
+//! the decoded offset image (the scene without the pattern: the cloud's colour) as the
+//! logarithm of its luminance `R + G + B`, less that logarithm's mean over the surrounding
+//! 7×7 pixels. Brightness is albedo times shading, so the logarithm makes it a sum, and the
+//! local mean removes the shading, which varies smoothly across a finger and changes as the
+//! hand rolls towards or away from the projector; what remains is the albedo's fine pattern,
+//! which the skin carries with it.
+//!
+//! When a point is placed, the square patch around it (17×17 px) becomes its *template*, kept
+//! for good: every later window is matched against that first appearance, so the track does
+//! not drift, however long it runs. Each window:
+//! 1. *Predict*: the last position moved on by the last step (constant velocity).
+//! 2. *Search*: normalised cross-correlation (NCC) of the template at whole-pixel offsets around
+//!    the prediction: ±3 px while tracking, ±24 px while the point is lost, which is how it
+//!    re-acquires.
+//! 3. *Refine*: Gauss–Newton on an affine warp with a gain and a bias (forward-additive
+//!    Lucas–Kanade, Baker & Matthews, IJCV 2004), `g·T(x) + b ≈ I(t + A·x)`, to a fraction of a
+//!    pixel, so the patch may shear and change scale with the hand's roll and the finger's
+//!    flexion. The affine part is held gently to the template's shape (a Tikhonov term), since
+//!    faint texture constrains it less than the translation; undamped, it followed the noise.
+//! 4. *Accept* only a match whose NCC after refinement reaches
+//!    [`FollowOptions::min_correlation`] (a lost point: the stricter
+//!    [`FollowOptions::reacquire_correlation`], its search being wide), which stays within 2 px
+//!    of the search's best and inside the image. Otherwise the window's sample is invalid and
+//!    the point is *lost*: nothing is invented, and the next windows search for it.
+//!
+//! What limits it on the rig: lateral motion. While the skin moves across a pixel inside the
+//! decode window, the three frames see different albedo, and the fringe terms of the window's
+//! mean no longer cancel; what they leave in the offset image is fringe-shaped, does not move
+//! with the skin, and is as strong as faint texture. Tried and not kept: a quadratic
+//! brightness term in the match (it absorbed texture, not shading), the fringe amplitude as
+//! the image (holes wherever the decode refused a pixel), wider shading boxes and templates
+//! (they reach the finger's outline and its shadow, which do not move with the skin).
+//!
+//! The 3D position is then read at the matched sub-pixel location by [`locate_subpixel`]:
+//! the neighbourhood's points, outliers removed as [`super::locate`] does, fitted as an affine
+//! function of the pixel offset and evaluated at the exact location.
+
+use super::track::{median, TrackOptions};
+use crate::triangulate::PointCloud;
+use nalgebra::{SMatrix, SVector};
+
+/// Settings of the skin follower.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FollowOptions {
+    /// Half size of the template, px (8 → 17×17).
+    pub template_radius_px: usize,
+    /// Whole-pixel search radius around the prediction while tracking, px.
+    pub step_search_px: usize,
+    /// Search radius around the last position while the point is lost, px.
+    pub reacquire_search_px: usize,
+    /// Least normalised cross-correlation of an accepted match while tracking.
+    pub min_correlation: f64,
+    /// Least normalised cross-correlation for a lost point to be found again.
+    pub reacquire_correlation: f64,
+    /// Least standard deviation of the template's texture (log luminance, so a relative
+    /// brightness): below it the skin there shows nothing to follow.
+    pub min_template_std: f64,
+    /// Gauss–Newton iterations at most.
+    pub iterations: usize,
+}
+
+impl Default for FollowOptions {
+    fn default() -> Self {
+        Self {
+            template_radius_px: 8,
+            step_search_px: 3,
+            reacquire_search_px: 24,
+            min_correlation: 0.5,
+            reacquire_correlation: 0.7,
+            min_template_std: 0.008,
+            iterations: 20,
+        }
+    }
+}
+
+/// Errors of placing a point to follow.
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
+pub enum FollowError {
+    #[error("the point {u:.1},{v:.1} is too near the image's edge to follow")]
+    AtEdge { u: f64, v: f64 },
+    #[error(
+        "the skin around {u:.1},{v:.1} shows too little texture to follow (relative spread {std:.4}, at least {needed} needed); use a fixed pixel there"
+    )]
+    NoTexture {
+        u: f64,
+        v: f64,
+        std: f64,
+        needed: f64,
+    },
+}
+
+/// Half size of the box whose mean log luminance is taken out (3 → 7×7).
+const SHADING_RADIUS_PX: usize = 3;
+
+/// Weight of the affine part's pull towards the template's shape, relative to the mean
+/// squared gradient.
+const AFFINE_DAMPING: f64 = 0.1;
+
+/// A cloud's texture image: log luminance less its local mean (caller-allocated, reused).
+#[derive(Debug, Clone, Default)]
+pub struct TextureImage {
+    pub width: usize,
+    pub height: usize,
+    pub values: Vec<f32>,
+    log: Vec<f32>,
+    column_sums: Vec<f32>,
+}
+
+impl TextureImage {
+    /// Fills `self` from `cloud`'s colour: box sums by running column sums, O(1) per pixel.
+    pub fn fill_from(&mut self, cloud: &PointCloud) {
+        let (w, h) = (cloud.width, cloud.height);
+        self.width = w;
+        self.height = h;
+        self.log.clear();
+        self.log.extend(cloud.colour_rgb.iter().map(|c| {
+            (f32::from(c[0]) + f32::from(c[1]) + f32::from(c[2]))
+                .max(1.0)
+                .ln()
+        }));
+        self.values.clear();
+        self.values.resize(w * h, 0.0);
+        if w == 0 || h == 0 {
+            return;
+        }
+        let r = SHADING_RADIUS_PX;
+        // Column sums over rows y−r..=y+r (clamped), updated row by row.
+        self.column_sums.clear();
+        self.column_sums.resize(w, 0.0);
+        for y in 0..=r.min(h - 1) {
+            for x in 0..w {
+                self.column_sums[x] += self.log[y * w + x];
+            }
+        }
+        for y in 0..h {
+            let rows = (y + r).min(h - 1) + 1 - y.saturating_sub(r);
+            let mut sum: f32 = self.column_sums[..=r.min(w - 1)].iter().sum();
+            for x in 0..w {
+                let cols = (x + r).min(w - 1) + 1 - x.saturating_sub(r);
+                let mean = sum / (rows * cols) as f32;
+                self.values[y * w + x] = self.log[y * w + x] - mean;
+                if x + r + 1 < w {
+                    sum += self.column_sums[x + r + 1];
+                }
+                if x >= r {
+                    sum -= self.column_sums[x - r];
+                }
+            }
+            if y + r + 1 < h {
+                for x in 0..w {
+                    self.column_sums[x] += self.log[(y + r + 1) * w + x];
+                }
+            }
+            if y >= r {
+                for x in 0..w {
+                    self.column_sums[x] -= self.log[(y - r) * w + x];
+                }
+            }
+        }
+    }
+
+    /// Bilinear sample at `(u, v)`, `None` outside the image.
+    #[inline]
+    fn sample(&self, u: f64, v: f64) -> Option<f64> {
+        if !(u >= 0.0 && v >= 0.0) {
+            return None;
+        }
+        let (x0, y0) = (u.floor() as usize, v.floor() as usize);
+        if x0 + 1 >= self.width || y0 + 1 >= self.height {
+            return None;
+        }
+        let (fx, fy) = (u - x0 as f64, v - y0 as f64);
+        let i = y0 * self.width + x0;
+        let at = |k: usize| f64::from(self.values[k]);
+        let top = at(i) + fx * (at(i + 1) - at(i));
+        let bottom = at(i + self.width) + fx * (at(i + self.width + 1) - at(i + self.width));
+        Some(top + fy * (bottom - top))
+    }
+}
+
+/// One point followed over the skin.
+#[derive(Debug, Clone)]
+pub struct SkinFollower {
+    offsets: Vec<(f64, f64)>,
+    template: Vec<f64>,
+    template_mean: f64,
+    template_std: f64,
+    position: (f64, f64),
+    step: (f64, f64),
+    lost: bool,
+    options: FollowOptions,
+}
+
+impl SkinFollower {
+    /// Takes the patch around `pixel` in `image` as the template.
+    pub fn new(
+        image: &TextureImage,
+        pixel: (f64, f64),
+        options: FollowOptions,
+    ) -> Result<Self, FollowError> {
+        let r = options.template_radius_px as i64;
+        let offsets: Vec<(f64, f64)> = (-r..=r)
+            .flat_map(|dy| (-r..=r).map(move |dx| (dx as f64, dy as f64)))
+            .collect();
+        let template: Option<Vec<f64>> = offsets
+            .iter()
+            .map(|(dx, dy)| image.sample(pixel.0 + dx, pixel.1 + dy))
+            .collect();
+        let template = template.ok_or(FollowError::AtEdge {
+            u: pixel.0,
+            v: pixel.1,
+        })?;
+        let n = template.len() as f64;
+        let mean = template.iter().sum::<f64>() / n;
+        let std = (template.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / n).sqrt();
+        if !(std >= options.min_template_std) {
+            return Err(FollowError::NoTexture {
+                u: pixel.0,
+                v: pixel.1,
+                std,
+                needed: options.min_template_std,
+            });
+        }
+        Ok(Self {
+            offsets,
+            template,
+            template_mean: mean,
+            template_std: std,
+            position: pixel,
+            step: (0.0, 0.0),
+            lost: false,
+            options,
+        })
+    }
+
+    /// The last matched pixel (or where the point was lost).
+    pub fn pixel(&self) -> (f64, f64) {
+        self.position
+    }
+
+    /// Whether the last window lost the point.
+    pub fn is_lost(&self) -> bool {
+        self.lost
+    }
+
+    /// Normalised cross-correlation of the template placed at `at`, or `None` where part of
+    /// the patch leaves the image.
+    fn correlation(&self, image: &TextureImage, at: (f64, f64)) -> Option<f64> {
+        let n = self.offsets.len() as f64;
+        let (mut sum, mut sum_sq, mut cross) = (0.0, 0.0, 0.0);
+        for (x, &t) in self.offsets.iter().zip(&self.template) {
+            let i = image.sample(at.0 + x.0, at.1 + x.1)?;
+            sum += i;
+            sum_sq += i * i;
+            cross += i * (t - self.template_mean);
+        }
+        let var = (sum_sq - sum * sum / n).max(0.0);
+        (var > 0.0).then(|| cross / (var.sqrt() * self.template_std * n.sqrt()))
+    }
+
+    /// Finds the patch in the next window's `image`: its pixel, or `None` (lost this window).
+    pub fn follow(&mut self, image: &TextureImage) -> Option<(f64, f64)> {
+        let (centre, radius) = if self.lost {
+            (self.position, self.options.reacquire_search_px as i64)
+        } else {
+            (
+                (self.position.0 + self.step.0, self.position.1 + self.step.1),
+                self.options.step_search_px as i64,
+            )
+        };
+        let mut best: Option<(f64, (f64, f64))> = None;
+        for dy in -radius..=radius {
+            for dx in -radius..=radius {
+                let at = (centre.0 + dx as f64, centre.1 + dy as f64);
+                if let Some(c) = self.correlation(image, at) {
+                    if best.is_none_or(|(b, _)| c > b) {
+                        best = Some((c, at));
+                    }
+                }
+            }
+        }
+        // A lost point comes back only on a clear match: its search is wide.
+        let threshold = if self.lost {
+            self.options.reacquire_correlation
+        } else {
+            self.options.min_correlation
+        };
+        let accepted = best
+            .filter(|(c, _)| *c >= 0.8 * threshold)
+            .and_then(|(_, start)| self.refine(image, start))
+            .filter(|&at| self.correlation(image, at).is_some_and(|c| c >= threshold));
+        match accepted {
+            Some(at) => {
+                self.step = if self.lost {
+                    (0.0, 0.0)
+                } else {
+                    (at.0 - self.position.0, at.1 - self.position.1)
+                };
+                self.position = at;
+                self.lost = false;
+                Some(at)
+            }
+            None => {
+                self.lost = true;
+                self.step = (0.0, 0.0);
+                None
+            }
+        }
+    }
+
+    /// Gauss–Newton on the translation with gain and bias from `start`; `None` where the
+    /// normal equations are singular, the patch leaves the image or the refinement wanders
+    /// more than two pixels from the search's best.
+    fn refine(&self, image: &TextureImage, start: (f64, f64)) -> Option<(f64, f64)> {
+        // Parameters: translation (2), affine (4), gain and bias.
+        let mut p = SVector::<f64, 8>::zeros();
+        p[6] = 1.0;
+        for _ in 0..self.options.iterations {
+            let mut normal = SMatrix::<f64, 8, 8>::zeros();
+            let mut rhs = SVector::<f64, 8>::zeros();
+            for (x, &t) in self.offsets.iter().zip(&self.template) {
+                let u = start.0 + p[0] + x.0 + p[2] * x.0 + p[3] * x.1;
+                let v = start.1 + p[1] + x.1 + p[4] * x.0 + p[5] * x.1;
+                let i = image.sample(u, v)?;
+                // Central differences over one pixel.
+                let gx = image.sample(u + 0.5, v)? - image.sample(u - 0.5, v)?;
+                let gy = image.sample(u, v + 0.5)? - image.sample(u, v - 0.5)?;
+                let j = SVector::<f64, 8>::from([
+                    gx,
+                    gy,
+                    gx * x.0,
+                    gx * x.1,
+                    gy * x.0,
+                    gy * x.1,
+                    -t,
+                    -1.0,
+                ]);
+                normal += j * j.transpose();
+                rhs += j * (p[6] * t + p[7] - i);
+            }
+            // The affine part is held gently to the template's shape (Tikhonov): faint
+            // texture constrains it less than the translation.
+            let damping = AFFINE_DAMPING * (normal[(0, 0)] + normal[(1, 1)]) / 2.0;
+            for k in 2..6 {
+                normal[(k, k)] += damping;
+                rhs[k] -= damping * p[k];
+            }
+            let step = normal.cholesky()?.solve(&rhs);
+            p += step;
+            if p[0].abs() > 2.0 || p[1].abs() > 2.0 {
+                return None;
+            }
+            if step[0].abs() < 1e-4 && step[1].abs() < 1e-4 {
+                break;
+            }
+        }
+        Some((start.0 + p[0], start.1 + p[1]))
+    }
+}
+
+/// The 3D position (camera frame, mm) of the surface at sub-pixel `pixel`: the valid points
+/// of the `(2·radius + 1)²` neighbourhood, outliers removed as in [`super::locate`], fitted by
+/// least squares as `p(u, v) = p₀ + p_u·Δu + p_v·Δv` and evaluated at `pixel` (`p₀`). `None`
+/// with fewer than `min_valid_fraction` of the neighbourhood valid.
+pub fn locate_subpixel(
+    cloud: &PointCloud,
+    pixel: (f64, f64),
+    options: &TrackOptions,
+) -> Option<[f64; 3]> {
+    let (cu, cv) = (pixel.0.round(), pixel.1.round());
+    if cu < 0.0 || cv < 0.0 || cu >= cloud.width as f64 || cv >= cloud.height as f64 {
+        return None;
+    }
+    let r = options.radius_px as i64;
+    let mut points: Vec<([f64; 3], f64, f64)> = Vec::with_capacity(((2 * r + 1).pow(2)) as usize);
+    let mut slots = 0usize;
+    for y in cv as i64 - r..=cv as i64 + r {
+        for x in cu as i64 - r..=cu as i64 + r {
+            if x < 0 || y < 0 || x >= cloud.width as i64 || y >= cloud.height as i64 {
+                continue;
+            }
+            slots += 1;
+            let p = cloud.point_in_camera_mm[y as usize * cloud.width + x as usize];
+            if p[2].is_finite() {
+                points.push((
+                    [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])],
+                    x as f64 - pixel.0,
+                    y as f64 - pixel.1,
+                ));
+            }
+        }
+    }
+    if slots == 0 || (points.len() as f64) < options.min_valid_fraction * slots as f64 {
+        return None;
+    }
+    let mut centre = [0.0; 3];
+    let mut scale = [0.0; 3];
+    for axis in 0..3 {
+        let mut v: Vec<f64> = points.iter().map(|p| p.0[axis]).collect();
+        centre[axis] = median(&mut v);
+        let mut dev: Vec<f64> = v.iter().map(|x| (x - centre[axis]).abs()).collect();
+        scale[axis] = (1.4826 * median(&mut dev)).max(0.05);
+    }
+    let fit = |subset: &[&([f64; 3], f64, f64)]| -> Option<[f64; 3]> {
+        let mut normal = nalgebra::Matrix3::<f64>::zeros();
+        let mut rhs = [nalgebra::Vector3::<f64>::zeros(); 3];
+        for (p, du, dv) in subset {
+            let b = nalgebra::Vector3::new(1.0, *du, *dv);
+            normal += b * b.transpose();
+            for axis in 0..3 {
+                rhs[axis] += b * p[axis];
+            }
+        }
+        let lu = normal.lu();
+        let mut out = [0.0; 3];
+        for axis in 0..3 {
+            out[axis] = lu.solve(&rhs[axis])?[0];
+        }
+        Some(out)
+    };
+    let inliers: Vec<&([f64; 3], f64, f64)> = points
+        .iter()
+        .filter(|p| (0..3).all(|a| (p.0[a] - centre[a]).abs() <= options.outlier_k * scale[a]))
+        .collect();
+    if inliers.len() < 3 {
+        return Some(centre);
+    }
+    fit(&inliers).or(Some(centre))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A smooth texture, luminance 0–765 around 300.
+    fn texture(u: f64, v: f64) -> f64 {
+        300.0
+            + 25.0 * (0.41 * u + 0.13 * v).sin()
+            + 20.0 * (0.07 * u - 0.53 * v + 1.0).sin()
+            + 15.0 * (0.29 * u + 0.31 * v + 2.0).sin()
+    }
+
+    /// A cloud whose colour is `texture` seen through `map` (image pixel → texture point), on a
+    /// plane at 500 mm; `covered` pixels show a flat gray (an occluder).
+    fn cloud(
+        map: impl Fn(f64, f64) -> (f64, f64),
+        covered: impl Fn(f64, f64) -> bool,
+        gain: f64,
+    ) -> PointCloud {
+        let (w, h) = (120, 90);
+        let mut c = PointCloud {
+            width: w,
+            height: h,
+            time_s: 0.0,
+            point_in_camera_mm: vec![[0.0; 3]; w * h],
+            colour_rgb: vec![[0; 3]; w * h],
+            fringe_amplitude: vec![1.0; w * h],
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let (u, v) = (x as f64, y as f64);
+                let l = if covered(u, v) {
+                    200.0
+                } else {
+                    let (tu, tv) = map(u, v);
+                    gain * texture(tu, tv)
+                };
+                let byte = (l / 3.0).round().clamp(0.0, 255.0) as u8;
+                c.colour_rgb[y * w + x] = [byte; 3];
+                c.point_in_camera_mm[y * w + x] = [
+                    (u as f32 - 60.0) * 0.4,
+                    (v as f32 - 45.0) * 0.4,
+                    500.0 + 0.1 * u as f32,
+                ];
+            }
+        }
+        c
+    }
+
+    fn texture_image(c: &PointCloud) -> TextureImage {
+        let mut l = TextureImage::default();
+        l.fill_from(c);
+        l
+    }
+
+    #[test]
+    fn follows_a_patch_that_moves_turns_and_brightens_and_reacquires_it() {
+        let start = cloud(|u, v| (u, v), |_, _| false, 1.0);
+        let mut f = SkinFollower::new(
+            &texture_image(&start),
+            (50.0, 40.0),
+            FollowOptions::default(),
+        )
+        .expect("textured");
+        // The skin moves by 1.3 px right and 0.6 px up per window and turns by 0.4° per
+        // window, about the followed point: where is texture point (50, 40) now?
+        let mut truth = (50.0, 40.0);
+        for k in 1..=8 {
+            let angle = (0.4 * k as f64).to_radians();
+            truth = (50.0 + 1.3 * k as f64, 40.0 - 0.6 * k as f64);
+            let (c, s) = (angle.cos(), angle.sin());
+            let image = cloud(
+                |u, v| {
+                    let (du, dv) = (u - truth.0, v - truth.1);
+                    (50.0 + c * du + s * dv, 40.0 - s * du + c * dv)
+                },
+                |_, _| false,
+                1.0 + 0.03 * k as f64,
+            );
+            let got = f.follow(&texture_image(&image)).expect("followed");
+            assert!(
+                (got.0 - truth.0).abs() < 0.05 && (got.1 - truth.1).abs() < 0.05,
+                "window {k}: {got:?} against {truth:?}"
+            );
+        }
+        // Covered by a flat occluder: lost, no position invented.
+        let hidden = cloud(
+            |u, v| (u, v),
+            |u, v| (u - truth.0).abs() < 15.0 && (v - truth.1).abs() < 15.0,
+            1.0,
+        );
+        assert_eq!(f.follow(&texture_image(&hidden)), None);
+        assert!(f.is_lost());
+        // It reappears 9 px further on: re-acquired.
+        let back = (truth.0 + 9.0, truth.1 + 4.0);
+        let angle = 3.2f64.to_radians();
+        let (c, s) = (angle.cos(), angle.sin());
+        let image = cloud(
+            |u, v| {
+                let (du, dv) = (u - back.0, v - back.1);
+                (50.0 + c * du + s * dv, 40.0 - s * du + c * dv)
+            },
+            |_, _| false,
+            0.9,
+        );
+        let got = f.follow(&texture_image(&image)).expect("re-acquired");
+        assert!(
+            (got.0 - back.0).abs() < 0.05 && (got.1 - back.1).abs() < 0.05,
+            "{got:?}"
+        );
+    }
+
+    #[test]
+    fn refuses_skin_without_texture_and_the_image_edge() {
+        let flat = cloud(|_, _| (0.0, 0.0), |_, _| false, 1.0);
+        let l = texture_image(&flat);
+        assert!(matches!(
+            SkinFollower::new(&l, (50.0, 40.0), FollowOptions::default()),
+            Err(FollowError::NoTexture { .. })
+        ));
+        let textured = texture_image(&cloud(|u, v| (u, v), |_, _| false, 1.0));
+        assert!(matches!(
+            SkinFollower::new(&textured, (3.0, 40.0), FollowOptions::default()),
+            Err(FollowError::AtEdge { .. })
+        ));
+    }
+
+    #[test]
+    fn the_subpixel_position_lies_on_the_surface_between_pixels() {
+        let mut c = cloud(|u, v| (u, v), |_, _| false, 1.0);
+        // One wild point in the neighbourhood is left out.
+        c.point_in_camera_mm[41 * 120 + 51] = [0.0, 0.0, 900.0];
+        let p = locate_subpixel(&c, (50.3, 40.6), &TrackOptions::default()).expect("valid");
+        let expected = [(50.3 - 60.0) * 0.4, (40.6 - 45.0) * 0.4, 500.0 + 0.1 * 50.3];
+        for a in 0..3 {
+            assert!(
+                (p[a] - expected[a]).abs() < 1e-3,
+                "{p:?} against {expected:?}"
+            );
+        }
+    }
+}
