@@ -74,6 +74,7 @@ fn track(config: &RigConfig, frames: &[Frame], kept: impl Fn(u64) -> bool) -> Ve
                 samples.push(TrackSample {
                     time_s: cloud.time_s,
                     frame: i,
+                    pixel: Some(pixel),
                     position_mm: locate(&cloud, pixel, &TrackOptions::default()),
                 });
             }
@@ -81,6 +82,7 @@ fn track(config: &RigConfig, frames: &[Frame], kept: impl Fn(u64) -> bool) -> Ve
             _ => samples.push(TrackSample {
                 time_s: centre_s,
                 frame: i,
+                pixel: None,
                 position_mm: None,
             }),
         }

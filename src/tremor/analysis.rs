@@ -22,10 +22,16 @@
 //! 7. No figure from too little data: a record of which less than half was measured, or in
 //!    which no 1 s window has half of its samples measured, gets
 //!    [`TremorError::TooFewValid`] saying so, never a peak-to-peak of 0 mm.
-//! 8. Labels: the MDS-UPDRS amplitude bin of the peak-to-peak amplitude (0: no tremor peak,
+//! 8. The measures of [`super::measures`]: the tremor stability index of the band-passed
+//!    record, the peak's half-power bandwidth and its first harmonic's relative power, and the
+//!    TETRAS amplitude rating.
+//! 9. Labels: the MDS-UPDRS amplitude bin of the peak-to-peak amplitude (0: no tremor peak,
 //!    1: < 1 cm, 2: 1–3 cm, 3: 3–10 cm, 4: ≥ 10 cm) and the usual bands containing the peak:
 //!    parkinsonian rest 3–7 Hz, essential 4–12 Hz, physiological 8–12 Hz.
 
+use super::measures::{
+    half_power_bandwidth, harmonic_relative_power, tetras_amplitude_rating, tremor_stability_index,
+};
 use super::spectrum::{
     band_pass_compensated, detrend_linear, moving_average_gain, refine_peak, resample, welch, Psd,
 };
@@ -75,8 +81,32 @@ pub struct TremorReport {
     pub occupancy: f64,
     pub frequency_stability_hz: Option<f64>,
     pub updrs_amplitude_bin: u8,
+    /// The TETRAS upper-limb amplitude rating ([`super::measures`]).
+    pub tetras_amplitude_rating: &'static str,
+    /// Tremor stability index, Hz (`None`: too few cycles).
+    pub tremor_stability_index_hz: Option<f64>,
+    /// Half-power bandwidth of the peak, Hz (`None` without a peak).
+    pub half_power_bandwidth_hz: Option<f64>,
+    /// The first harmonic's power relative to the peak's (`None` without a peak).
+    pub harmonic_relative_power: Option<f64>,
     pub frequency_bands: Vec<&'static str>,
     pub spectrum: Psd,
+}
+
+impl TremorReport {
+    /// The field's measures in one line: TETRAS rating, TSI, bandwidth, harmonic power; a
+    /// measure the record cannot give is "—".
+    pub fn measures_line(&self) -> String {
+        let hz = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.2} Hz"));
+        format!(
+            "TETRAS amplitude {} · TSI {} · half-power bandwidth {} · 1st harmonic {}",
+            self.tetras_amplitude_rating,
+            hz(self.tremor_stability_index_hz),
+            hz(self.half_power_bandwidth_hz),
+            self.harmonic_relative_power
+                .map_or("—".to_string(), |p| format!("{:.1} %", 100.0 * p)),
+        )
+    }
 }
 
 /// The least share of valid samples a record needs for figures.
@@ -216,6 +246,13 @@ pub fn analyze(
         occupancy,
         frequency_stability_hz,
         updrs_amplitude_bin,
+        tetras_amplitude_rating: tetras_amplitude_rating(
+            amplitude_peak_to_peak_mm,
+            peak_frequency_hz.is_some(),
+        ),
+        tremor_stability_index_hz: tremor_stability_index(&y, fs),
+        half_power_bandwidth_hz: peak_frequency_hz.and_then(|f| half_power_bandwidth(&psd, f)),
+        harmonic_relative_power: peak_frequency_hz.and_then(|f| harmonic_relative_power(&psd, f)),
         frequency_bands,
         spectrum: psd,
     })

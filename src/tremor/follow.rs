@@ -83,7 +83,7 @@ pub enum FollowError {
     #[error("the point {u:.1},{v:.1} is too near the image's edge to follow")]
     AtEdge { u: f64, v: f64 },
     #[error(
-        "the skin around {u:.1},{v:.1} shows too little texture to follow (relative spread {std:.4}, at least {needed} needed); use a fixed pixel there"
+        "the surface around {u:.1},{v:.1} shows too little texture to follow (relative spread {std:.4}, at least {needed} needed); use a fixed pixel there"
     )]
     NoTexture {
         u: f64,
@@ -217,7 +217,7 @@ impl SkinFollower {
         let n = template.len() as f64;
         let mean = template.iter().sum::<f64>() / n;
         let std = (template.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / n).sqrt();
-        if !(std >= options.min_template_std) {
+        if std.is_nan() || std < options.min_template_std {
             return Err(FollowError::NoTexture {
                 u: pixel.0,
                 v: pixel.1,

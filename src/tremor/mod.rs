@@ -5,14 +5,17 @@
 //! tracked live for the GUI ([`live`]).
 
 pub mod analysis;
+pub mod axes;
 pub mod control;
 pub mod follow;
 pub mod live;
+pub mod measures;
 pub mod spectrum;
 pub mod table;
 pub mod track;
 
 pub use analysis::{analyze, AnalysisOptions, TremorReport};
+pub use axes::{principal_axis, summed_spectrum_peak, DisplacementAxis};
 pub use control::{ControlPoint, PointMode};
 pub use follow::{locate_subpixel, FollowError, FollowOptions, SkinFollower, TextureImage};
 pub use live::{LivePoint, LiveTracker};

@@ -219,6 +219,7 @@ fn analyse(job: &SessionJob<'_>, session_dir: &Path, dir: &Path) -> Result<Vec<S
         &tracked,
         &names,
         &pixels,
+        tremorscan::tremor::DisplacementAxis::Vertical,
     )?;
 
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;

@@ -138,5 +138,10 @@ fn draw_point(area: &Area<'_>, point: &PointFigure) -> Result<(), Box<dyn std::e
         RGBColor(230, 236, 250).filled(),
     )))?;
     chart.draw_series(LineSeries::new(spectrum, &RED))?;
+    bottom.draw_text(
+        &r.measures_line(),
+        &("sans-serif", 15).into_text_style(&bottom),
+        (80, 12),
+    )?;
     Ok(())
 }

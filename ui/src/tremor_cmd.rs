@@ -11,8 +11,11 @@ use std::io::Write;
 use std::path::PathBuf;
 use tremorscan::decode::{frames_averaged, DecodeParams};
 use tremorscan::session::Session;
+use tremorscan::tremor::measures::{coherence, COHERENCE_BAND_HZ};
+use tremorscan::tremor::spectrum::resample;
 use tremorscan::tremor::{
-    analyze, displacements, pixel_of, AnalysisOptions, TrackSample, TremorError, TremorReport,
+    analyze, displacements, pixel_of, principal_axis, summed_spectrum_peak, AnalysisOptions,
+    DisplacementAxis, TrackSample, TremorError, TremorReport,
 };
 
 /// The control points and the vertical axis, shared by `track` and `analyze`.
@@ -32,6 +35,33 @@ pub struct ControlPointArgs {
     pub unwrap: UnwrapArgs,
     #[command(flatten)]
     pub mode: PointModeArgs,
+    /// The direction displacements and figures are taken along: the vertical axis
+    /// (`--vertical`), the principal axis of each point's band-passed 3D motion, or camera x,
+    /// y or z.
+    #[arg(long, value_enum, default_value_t = AxisArg::Vertical)]
+    pub axis: AxisArg,
+}
+
+/// `--axis` values.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AxisArg {
+    Vertical,
+    Principal,
+    X,
+    Y,
+    Z,
+}
+
+impl AxisArg {
+    pub fn axis(self) -> DisplacementAxis {
+        match self {
+            AxisArg::Vertical => DisplacementAxis::Vertical,
+            AxisArg::Principal => DisplacementAxis::Principal,
+            AxisArg::X => DisplacementAxis::X,
+            AxisArg::Y => DisplacementAxis::Y,
+            AxisArg::Z => DisplacementAxis::Z,
+        }
+    }
 }
 
 #[derive(clap::Args, Debug, Clone)]
@@ -98,15 +128,17 @@ fn all_pixels(session: &Session, control: &ControlPointArgs) -> Result<Vec<(f64,
     Ok(all)
 }
 
-/// One control point's samples, for [`track_csv`].
+/// One control point's samples and the unit axis its displacement is taken along, for
+/// [`track_csv`].
 pub struct TrackColumn<'a> {
     pub name: String,
     pub samples: &'a [TrackSample],
+    pub axis: Vector3<f64>,
 }
 
-/// The track as CSV: one row per sample and point, displacement along `axis`; empty cells where
-/// the point was not measured.
-pub fn track_csv(points: &[TrackColumn<'_>], axis: &Vector3<f64>) -> String {
+/// The track as CSV: one row per sample and point, displacement along the point's axis; empty
+/// cells where the point was not measured.
+pub fn track_csv(points: &[TrackColumn<'_>]) -> String {
     let mut out = String::from("time_s,frame,point,u,v,x_mm,y_mm,z_mm,displacement_mm,valid\n");
     let fmt = |v: f64| {
         if v.is_finite() {
@@ -116,7 +148,7 @@ pub fn track_csv(points: &[TrackColumn<'_>], axis: &Vector3<f64>) -> String {
         }
     };
     for p in points {
-        let d = displacements(p.samples, axis);
+        let d = displacements(p.samples, &p.axis);
         for (s, d) in p.samples.iter().zip(d) {
             let [x, y, z] = s.position_mm.map_or([f64::NAN; 3], |p| p);
             let (u, v) = s.pixel.unwrap_or((f64::NAN, f64::NAN));
@@ -154,6 +186,10 @@ pub fn report_json(pixel: (f64, f64), r: &TremorReport, axis: &Vector3<f64>) -> 
         "occupancy": r.occupancy,
         "frequency_stability": r.frequency_stability_hz,
         "updrs_amplitude_bin": r.updrs_amplitude_bin,
+        "tetras_amplitude_rating": r.tetras_amplitude_rating,
+        "tremor_stability_index_hz": r.tremor_stability_index_hz,
+        "half_power_bandwidth_hz": r.half_power_bandwidth_hz,
+        "harmonic_relative_power": r.harmonic_relative_power,
         "frequency_bands": r.frequency_bands,
         "vertical_axis": [axis.x, axis.y, axis.z],
         "spectrum": {
@@ -187,12 +223,23 @@ pub fn run_track(args: &TrackArgs) -> Result<()> {
     let named: Vec<TrackColumn<'_>> = tracks
         .iter()
         .enumerate()
-        .map(|(k, track)| TrackColumn {
-            name: k.to_string(),
-            samples: track,
+        .map(|(k, track)| {
+            let unit = args
+                .control
+                .axis
+                .axis()
+                .unit(&axis, track, &AnalysisOptions::default())
+                .with_context(|| {
+                    format!("point {k}: too little was measured for a principal axis")
+                })?;
+            Ok(TrackColumn {
+                name: k.to_string(),
+                samples: track,
+                axis: unit,
+            })
         })
-        .collect();
-    let out = track_csv(&named, &axis);
+        .collect::<Result<_>>()?;
+    let out = track_csv(&named);
     for (k, (track, &(u, v))) in tracks.iter().zip(&points).enumerate() {
         let valid = track.iter().filter(|s| s.position_mm.is_some()).count();
         println!(
@@ -218,23 +265,42 @@ pub struct PointOutcome {
     pub name: String,
     pub pixel: (f64, f64),
     pub times_s: Vec<f64>,
+    /// Along `axis`.
     pub displacement_mm: Vec<Option<f64>>,
+    /// Which axis the displacement and figures are along, and its unit vector (camera frame).
+    pub axis_name: &'static str,
+    pub axis: Vector3<f64>,
+    /// The principal axis of the band-passed 3D motion (`None`: too little measured).
+    pub principal_axis: Option<Vector3<f64>>,
+    /// The peak of the summed 3-axis spectrum, Hz.
+    pub spectrum_3d_peak_hz: Option<f64>,
+    /// Coherence with each other point: name, at this point's peak, mean over 2–12 Hz.
+    pub coherence: Vec<(String, Option<f64>, Option<f64>)>,
     /// The figures, or why they are missing (too little was measured).
     pub report: Result<TremorReport, String>,
 }
 
 impl PointOutcome {
-    /// The JSON object `analyze` writes for this point.
-    pub fn json(&self, axis: &Vector3<f64>) -> serde_json::Value {
+    /// The JSON object `analyze` writes for this point; `vertical` is the vertical axis.
+    pub fn json(&self, vertical: &Vector3<f64>) -> serde_json::Value {
         let (u, v) = self.pixel;
-        match &self.report {
-            Ok(r) => {
-                let mut object = report_json(self.pixel, r, axis);
-                object["name"] = json!(self.name);
-                object
-            }
-            Err(why) => json!({ "name": self.name, "pixel": [u, v], "figures_missing": why }),
-        }
+        let mut object = match &self.report {
+            Ok(r) => report_json(self.pixel, r, vertical),
+            Err(why) => json!({ "pixel": [u, v], "figures_missing": why }),
+        };
+        let vector = |a: &Vector3<f64>| json!([a.x, a.y, a.z]);
+        object["name"] = json!(self.name);
+        object["displacement_axis"] = json!({ "name": self.axis_name, "unit": vector(&self.axis) });
+        object["principal_axis"] = self.principal_axis.as_ref().map_or(json!(null), vector);
+        object["spectrum_3d_peak_hz"] = json!(self.spectrum_3d_peak_hz);
+        object["coherence"] = self
+            .coherence
+            .iter()
+            .map(|(other, at_peak, mean)| {
+                json!({ "with": other, "at_peak": at_peak, "mean_2_12_hz": mean })
+            })
+            .collect();
+        object
     }
 
     /// The point's panel in the report figure.
@@ -248,13 +314,24 @@ impl PointOutcome {
     }
 }
 
-/// The tremor figures of every tracked point. A point with too little measured gets the reason
-/// instead of figures; any other analysis failure is an error naming the point.
+/// The displacement series of two points on one uniform grid, and its rate.
+fn common_grid(
+    times_s: &[f64],
+    a: &[Option<f64>],
+    b: &[Option<f64>],
+) -> Option<(Vec<f64>, Vec<f64>, f64)> {
+    let (x, y) = (resample(times_s, a)?, resample(times_s, b)?);
+    (x.valid_fraction >= 0.5 && y.valid_fraction >= 0.5).then_some((x.values, y.values, x.rate_hz))
+}
+
+/// The tremor figures of every tracked point along `axis`. A point with too little measured
+/// gets the reason instead of figures; any other analysis failure is an error naming the point.
 pub fn analyze_tracks(
     sequence_frames_averaged: usize,
     tracked: &SessionTracks,
     names: &[String],
     pixels: &[(f64, f64)],
+    axis: DisplacementAxis,
 ) -> Result<Vec<PointOutcome>> {
     // The analysis undoes the averaging that the decode leaves.
     let options = AnalysisOptions {
@@ -264,20 +341,63 @@ pub fn analyze_tracks(
     let mut outcomes = Vec::new();
     for ((track, name), &pixel) in tracked.tracks.iter().zip(names).zip(pixels) {
         let times_s: Vec<f64> = track.iter().map(|s| s.time_s).collect();
-        let displacement_mm = displacements(track, &tracked.axis);
-        let report = match analyze(&times_s, &displacement_mm, &options) {
-            Ok(r) => Ok(r),
-            // Too little was measured at this point: say so, keep the other points' figures.
-            Err(e @ TremorError::TooFewValid { .. }) => Err(e.to_string()),
-            Err(e) => return Err(e).with_context(|| format!("point `{name}`")),
+        let principal = principal_axis(track, options.band_hz);
+        let unit = match axis {
+            DisplacementAxis::Principal => principal,
+            other => other.unit(&tracked.axis, track, &options),
+        };
+        let (displacement_mm, report) = match unit {
+            Some(unit) => {
+                let d = displacements(track, &unit);
+                let report = match analyze(&times_s, &d, &options) {
+                    Ok(r) => Ok(r),
+                    // Too little was measured at this point: say so, keep the others' figures.
+                    Err(e @ TremorError::TooFewValid { .. }) => Err(e.to_string()),
+                    Err(e) => return Err(e).with_context(|| format!("point `{name}`")),
+                };
+                (d, report)
+            }
+            None => (
+                vec![None; track.len()],
+                Err("figures missing: too little was measured for a principal axis".to_string()),
+            ),
         };
         outcomes.push(PointOutcome {
             name: name.clone(),
             pixel,
             times_s,
             displacement_mm,
+            axis_name: axis.name(),
+            axis: unit.unwrap_or(tracked.axis),
+            principal_axis: principal,
+            spectrum_3d_peak_hz: summed_spectrum_peak(track, &options),
+            coherence: Vec::new(),
             report,
         });
+    }
+    // Coherence of every pair, on the displacements each point's figures use.
+    for i in 0..outcomes.len() {
+        for j in 0..outcomes.len() {
+            if i == j {
+                continue;
+            }
+            let (a, b) = (&outcomes[i], &outcomes[j]);
+            // Segments of 2 s, or shorter for a short record so that it still gives the four
+            // segments a coherence needs (0.8 s for a 2 s record: 1.25 Hz resolution).
+            let c = common_grid(&a.times_s, &a.displacement_mm, &b.displacement_mm).and_then(
+                |(x, y, rate_hz)| {
+                    let segment = (2.0 * rate_hz).min(0.4 * x.len() as f64).round() as usize;
+                    coherence(&x, &y, rate_hz, segment)
+                },
+            );
+            let peak = a.report.as_ref().ok().and_then(|r| r.peak_frequency_hz);
+            let entry = (
+                b.name.clone(),
+                c.as_ref().zip(peak).and_then(|(c, f)| c.at(f)),
+                c.as_ref().and_then(|c| c.band_mean(COHERENCE_BAND_HZ)),
+            );
+            outcomes[i].coherence.push(entry);
+        }
     }
     Ok(outcomes)
 }
@@ -303,6 +423,7 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
         &tracked,
         &names,
         &points,
+        args.control.axis.axis(),
     )?;
     for o in &outcomes {
         match &o.report {

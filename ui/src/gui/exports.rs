@@ -85,9 +85,10 @@ pub fn export_track(path: &Path, tracker: &LiveTracker) -> Result<String> {
         .map(|(name, _, samples)| TrackColumn {
             name: name.clone(),
             samples,
+            axis: Vector3::z(),
         })
         .collect();
-    std::fs::write(path, track_csv(&columns, &Vector3::z()))
+    std::fs::write(path, track_csv(&columns))
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(format!(
         "wrote the track of {} points to {}",

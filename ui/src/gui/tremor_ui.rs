@@ -80,6 +80,7 @@ impl TremorPanel {
                             r.updrs_amplitude_bin,
                             100.0 * r.valid_fraction
                         ));
+                        ui.label(r.measures_line());
                         spectrum_plot_ui(ui, *id, *colour, r);
                     }
                 }
