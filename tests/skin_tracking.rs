@@ -6,7 +6,7 @@
 //! point on skin without texture is refused by name rather than tracked blindly.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
-use tremorscan::decode::DecodeParams;
+use tremorscan::decode::{frames_averaged, DecodeParams};
 use tremorscan::rig::skin_eval::skin_tracking;
 use tremorscan::rig::{RigConfig, Tremor, VirtualRig};
 use tremorscan::tremor::{
@@ -46,6 +46,26 @@ fn a_fingertip_point_follows_its_skin_within_a_quarter_millimetre() {
     assert!(follow_rms <= 0.25, "{follow_rms} mm");
     // The premise: at a fixed pixel the skin slides by millimetres.
     assert!(fixed_rms > 1.0, "{fixed_rms} mm");
+    // Along the principal axis of the 3D motion, the figures match the material point's.
+    let window = frames_averaged(
+        &rig(rolling_hand(), None).sequence,
+        &DecodeParams::default(),
+    );
+    let (measured, truth) = r.follow.principal_figures(window);
+    let (measured, truth) = (measured.unwrap(), truth.unwrap());
+    let (fm, ft) = (
+        measured.peak_frequency_hz.unwrap(),
+        truth.peak_frequency_hz.unwrap(),
+    );
+    let p2p = measured.amplitude_peak_to_peak_mm / truth.amplitude_peak_to_peak_mm - 1.0;
+    println!(
+        "principal axis: {fm:.3} Hz ({ft:.3}), peak-to-peak {:.3} mm ({:.3}, {:+.2} %)",
+        measured.amplitude_peak_to_peak_mm,
+        truth.amplitude_peak_to_peak_mm,
+        100.0 * p2p
+    );
+    assert!((fm - ft).abs() <= 0.05, "{fm} against {ft}");
+    assert!(p2p.abs() <= 0.03, "{p2p}");
     // The pixel moves with the skin: it spans the sway's several pixels.
     let vs: Vec<f64> = r
         .follow

@@ -12,7 +12,8 @@
 use super::{RigError, Scene, VirtualRig};
 use crate::decode::{DecodeError, DecodeParams, SlidingDecoder, WindowOutcome};
 use crate::tremor::{
-    ControlPoint, FollowOptions, PointMode, TextureImage, TrackOptions, TrackSample,
+    analyze, displacements, principal_axis, AnalysisOptions, ControlPoint, FollowOptions,
+    PointMode, TextureImage, TrackOptions, TrackSample, TremorError, TremorReport,
 };
 use crate::triangulate::{PointCloud, TriangulateError, Triangulator};
 
@@ -62,6 +63,39 @@ impl TrackAgainstTruth {
                     .map(|p| (0..3).map(|a| (p[a] - t[a]).powi(2)).sum::<f64>().sqrt())
             })
             .collect()
+    }
+
+    /// The tremor figures along each series' own principal axis: the track's (the decode
+    /// window's averaging undone by `window_frames`, as `analyze` does) and the truth's.
+    pub fn principal_figures(
+        &self,
+        window_frames: usize,
+    ) -> (
+        Result<TremorReport, TremorError>,
+        Result<TremorReport, TremorError>,
+    ) {
+        let truth: Vec<TrackSample> = self
+            .samples
+            .iter()
+            .zip(&self.truth_mm)
+            .map(|(s, t)| TrackSample {
+                position_mm: Some(*t),
+                ..*s
+            })
+            .collect();
+        let figures = |samples: &[TrackSample], window_frames: usize| {
+            let options = AnalysisOptions {
+                window_frames,
+                ..AnalysisOptions::default()
+            };
+            let axis =
+                principal_axis(samples, options.band_hz).ok_or(TremorError::TooFewValid {
+                    why: "too little was measured for a principal axis".to_string(),
+                })?;
+            let times: Vec<f64> = samples.iter().map(|s| s.time_s).collect();
+            analyze(&times, &displacements(samples, &axis), &options)
+        };
+        (figures(&self.samples, window_frames), figures(&truth, 1))
     }
 
     /// RMS of [`Self::errors_mm`], `None` without a valid sample.

@@ -180,6 +180,7 @@ pub fn report_json(pixel: (f64, f64), r: &TremorReport, axis: &Vector3<f64>) -> 
         "peak_frequency_hz": r.peak_frequency_hz,
         "peaks_hz": r.peaks_hz,
         "amplitude_peak_to_peak_mm": r.amplitude_peak_to_peak_mm,
+        "amplitude_peak_to_peak_cm": r.amplitude_peak_to_peak_mm / 10.0,
         "amplitude_rms_mm": r.amplitude_rms_mm,
         "band_power_3_12": r.band_power_mm2,
         "band_power_4_6": r.narrow_band_power_mm2,

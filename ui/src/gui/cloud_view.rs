@@ -272,6 +272,14 @@ impl CloudView {
         }
         let painter = ui.painter_at(rect);
         for p in &tracker.points {
+            draw_trail(
+                &painter,
+                &clip_from_world,
+                p,
+                rect,
+                view_size,
+                colours.colour(p.id),
+            );
             let centre = match self.dragging {
                 Some((id, at)) if id == p.id => Some(at),
                 _ => marker_at(&clip_from_world, p, rect, view_size),
@@ -283,6 +291,47 @@ impl CloudView {
         response.on_hover_text(
             "Drag: orbit (on a marker: move the point) · right/middle drag: pan · scroll: zoom · click: add a control point",
         );
+    }
+}
+
+/// The seconds of a point's path drawn behind its marker.
+const TRAIL_S: f64 = 1.0;
+
+/// A control point's path over the last [`TRAIL_S`], broken where it was not measured.
+fn draw_trail(
+    painter: &egui::Painter,
+    clip_from_world: &nalgebra::Matrix4<f32>,
+    p: &tremorscan::tremor::LivePoint,
+    rect: egui::Rect,
+    view_size: [f32; 2],
+    colour: Color32,
+) {
+    let Some(newest) = p.samples.back().map(|s| s.time_s) else {
+        return;
+    };
+    let stroke = egui::Stroke::new(1.5, colour.gamma_multiply(0.8));
+    let mut run: Vec<egui::Pos2> = Vec::new();
+    for s in p.samples.iter().filter(|s| s.time_s >= newest - TRAIL_S) {
+        let at = s.position_mm.and_then(|q| {
+            project(
+                clip_from_world,
+                [q[0] as f32, q[1] as f32, q[2] as f32],
+                view_size,
+            )
+            .map(|(s, _)| rect.min + Vec2::new(s[0], s[1]))
+        });
+        match at {
+            Some(at) => run.push(at),
+            None => {
+                if run.len() > 1 {
+                    painter.add(egui::Shape::line(std::mem::take(&mut run), stroke));
+                }
+                run.clear();
+            }
+        }
+    }
+    if run.len() > 1 {
+        painter.add(egui::Shape::line(run, stroke));
     }
 }
 

@@ -107,6 +107,9 @@ pub fn export_report(png: &Path, tracker: &LiveTracker) -> Result<String> {
     let mut series = Vec::new();
     let mut objects = Vec::new();
     for p in &tracker.points {
+        if let Some(why) = p.follow_error() {
+            anyhow::bail!("point {}: {why}", p.name);
+        }
         let (times, d) = p.displacement_series(&axis);
         let report = match tremorscan::tremor::analyze(&times, &d, &tracker.analysis) {
             Ok(r) => {
@@ -166,10 +169,11 @@ mod tests {
     use super::*;
     use tremorscan::triangulate::PointCloud;
 
-    /// A tracker fed `seconds` of flat clouds at 121 Hz whose depth trembles by `amplitude_mm`
-    /// at 5.3 Hz.
+    /// A tracker fed `seconds` of flat, untextured clouds at 121 Hz whose depth trembles by
+    /// `amplitude_mm` at 5.3 Hz, its point at a fixed pixel (there is no texture to follow).
     fn trembling_tracker(seconds: f64, amplitude_mm: f64) -> LiveTracker {
         let mut t = LiveTracker::new(5.0);
+        t.set_mode(tremorscan::tremor::PointMode::FixedPixel);
         t.add("index, tip", (4.0, 4.0));
         let (w, h) = (10, 10);
         for k in 0..(seconds * 121.0) as usize {
@@ -255,6 +259,13 @@ mod tests {
             text.contains("index, tip") && text.contains("valid samples"),
             "{text}"
         );
+        // A point following skin without texture: refused with the reason, not 0 mm.
+        let mut plain = LiveTracker::new(5.0);
+        plain.add("plain", (20.0, 20.0));
+        plain.update(&flat(40, 40), 0);
+        let e = export_report(&dir.join("r.png"), &plain).expect_err("no texture");
+        let text = format!("{e:#}");
+        assert!(text.contains("plain") && text.contains("texture"), "{text}");
         let _ = std::fs::remove_dir_all(dir);
     }
 

@@ -1,12 +1,23 @@
-//! The displacement plot: every control point's displacement along the optical axis over the last
-//! five seconds, every sample drawn (about 600 per point at 121 FPS; nothing is decimated), gaps
-//! left open where a point was not measured. Live it follows the newest sample; paused it
-//! freezes the series so they can be zoomed, dragged and hovered.
+//! The displacement plot: every control point's displacement over the last five seconds along
+//! the chosen axis (the optical axis, each point's principal axis of motion, or camera x, y,
+//! z), every sample drawn (about 600 per point at 121 FPS; nothing is decimated), gaps left
+//! open where a point was not measured. Live it follows the newest sample; paused it freezes
+//! the series so they can be zoomed, dragged and hovered. The tremor panel analyses the same
+//! series.
 
 use egui::Color32;
 use egui_plot::{Legend, Line, Plot, PlotPoints};
 use nalgebra::Vector3;
-use tremorscan::tremor::LiveTracker;
+use tremorscan::tremor::{DisplacementAxis, LiveTracker};
+
+/// The axes the plot offers, with their labels.
+const AXES: [(DisplacementAxis, &str); 5] = [
+    (DisplacementAxis::Vertical, "vertical (optical axis)"),
+    (DisplacementAxis::Principal, "principal axis of each point"),
+    (DisplacementAxis::X, "camera x"),
+    (DisplacementAxis::Y, "camera y"),
+    (DisplacementAxis::Z, "camera z"),
+];
 
 /// One point's series at one instant.
 #[derive(Debug, Clone)]
@@ -19,13 +30,26 @@ pub struct Series {
     pub pixel: (f64, f64),
 }
 
-/// The series of every point in `tracker`, displacement along the camera's optical axis.
-pub fn snapshot(tracker: &LiveTracker, colour: &mut impl FnMut(u64) -> Color32) -> Vec<Series> {
+/// The series of every point in `tracker`, displacement along `axis` (the vertical is the
+/// optical axis; a point too sparse for a principal axis has no displacement).
+pub fn snapshot(
+    tracker: &LiveTracker,
+    axis: DisplacementAxis,
+    colour: &mut impl FnMut(u64) -> Color32,
+) -> Vec<Series> {
     tracker
         .points
         .iter()
         .map(|p| {
-            let (times_s, displacement_mm) = p.displacement_series(&Vector3::z());
+            let samples: Vec<_> = p.samples.iter().copied().collect();
+            let (times_s, displacement_mm) =
+                match axis.unit(&Vector3::z(), &samples, &tracker.analysis) {
+                    Some(unit) => p.displacement_series(&unit),
+                    None => (
+                        samples.iter().map(|s| s.time_s).collect(),
+                        vec![None; samples.len()],
+                    ),
+                };
             Series {
                 id: p.id,
                 name: p.name.clone(),
@@ -59,6 +83,8 @@ pub fn segments(times_s: &[f64], values: &[Option<f64>]) -> Vec<Vec<[f64; 2]>> {
 pub struct DisplacementPlot {
     /// Frozen series while paused.
     paused: Option<Vec<Series>>,
+    /// The axis the displacements are taken along.
+    pub axis: DisplacementAxis,
 }
 
 impl DisplacementPlot {
@@ -68,7 +94,20 @@ impl DisplacementPlot {
 
     pub fn displacement_plot_ui(&mut self, ui: &mut egui::Ui, live: &[Series]) {
         ui.horizontal(|ui| {
-            ui.strong("Vertical displacement (along the optical axis)");
+            let heading = ui.strong("Displacement along");
+            let label = AXES
+                .iter()
+                .find(|(a, _)| *a == self.axis)
+                .map_or("", |(_, l)| l);
+            egui::ComboBox::from_id_salt("displacement_axis")
+                .selected_text(label)
+                .show_ui(ui, |ui| {
+                    for (axis, label) in AXES {
+                        ui.selectable_value(&mut self.axis, axis, label);
+                    }
+                })
+                .response
+                .labelled_by(heading.id);
             let label = if self.is_paused() {
                 "Resume plot"
             } else {

@@ -285,7 +285,7 @@ impl TremorApp {
             }
         }
         let tracker = self.tracker_copy();
-        let series = plot_ui::snapshot(&tracker, &mut |id| self.colours.colour(id));
+        let series = plot_ui::snapshot(&tracker, self.plot.axis, &mut |id| self.colours.colour(id));
         self.tremor.update(&series, &tracker.analysis, false);
         let latest = self.source.as_ref().and_then(|s| s.latest.clone());
         let mut edits = Vec::new();
