@@ -33,12 +33,19 @@ fn rolling_hand() -> Tremor {
 }
 
 #[test]
-fn a_fingertip_point_follows_its_skin_within_a_quarter_millimetre() {
-    // Two seconds: eight tremor cycles.
-    let r = skin_tracking(&rig(rolling_hand(), None), DecodeParams::default(), 242, 0).unwrap();
+fn fingertip_points_follow_their_skin_within_a_quarter_millimetre() {
+    // The index (0) and middle (1) fingertips, two seconds each: eight tremor cycles.
+    for point in [0, 1] {
+        fingertip_follows_its_skin(point);
+    }
+}
+
+fn fingertip_follows_its_skin(point: usize) {
+    let rig = rig(rolling_hand(), None);
+    let r = skin_tracking(&rig, DecodeParams::default(), 242, point).unwrap();
     let (follow_rms, fixed_rms) = (r.follow.rms_mm().unwrap(), r.fixed.rms_mm().unwrap());
     println!(
-        "followed: {:.1} % valid, {follow_rms:.3} mm RMS; fixed pixel: {:.1} % valid, {fixed_rms:.3} mm RMS",
+        "point {point} followed: {:.1} % valid, {follow_rms:.3} mm RMS; fixed pixel: {:.1} % valid, {fixed_rms:.3} mm RMS",
         100.0 * r.follow.valid_share(),
         100.0 * r.fixed.valid_share()
     );
@@ -47,25 +54,33 @@ fn a_fingertip_point_follows_its_skin_within_a_quarter_millimetre() {
     // The premise: at a fixed pixel the skin slides by millimetres.
     assert!(fixed_rms > 1.0, "{fixed_rms} mm");
     // Along the principal axis of the 3D motion, the figures match the material point's.
-    let window = frames_averaged(
-        &rig(rolling_hand(), None).sequence,
-        &DecodeParams::default(),
-    );
-    let (measured, truth) = r.follow.principal_figures(window);
-    let (measured, truth) = (measured.unwrap(), truth.unwrap());
-    let (fm, ft) = (
-        measured.peak_frequency_hz.unwrap(),
-        truth.peak_frequency_hz.unwrap(),
-    );
-    let p2p = measured.amplitude_peak_to_peak_mm / truth.amplitude_peak_to_peak_mm - 1.0;
-    println!(
-        "principal axis: {fm:.3} Hz ({ft:.3}), peak-to-peak {:.3} mm ({:.3}, {:+.2} %)",
-        measured.amplitude_peak_to_peak_mm,
-        truth.amplitude_peak_to_peak_mm,
-        100.0 * p2p
-    );
-    assert!((fm - ft).abs() <= 0.05, "{fm} against {ft}");
+    let window = frames_averaged(&rig.sequence, &DecodeParams::default());
+    let p2p_error = |track: &tremorscan::rig::skin_eval::TrackAgainstTruth| {
+        let (measured, truth) = track.principal_figures(window);
+        let (measured, truth) = (measured.unwrap(), truth.unwrap());
+        let (fm, ft) = (
+            measured.peak_frequency_hz.unwrap(),
+            truth.peak_frequency_hz.unwrap(),
+        );
+        let p2p = measured.amplitude_peak_to_peak_mm / truth.amplitude_peak_to_peak_mm - 1.0;
+        println!(
+            "  principal axis: {fm:.3} Hz ({ft:.3}), peak-to-peak {:.3} mm ({:.3}, {:+.2} %)",
+            measured.amplitude_peak_to_peak_mm,
+            truth.amplitude_peak_to_peak_mm,
+            100.0 * p2p
+        );
+        assert!((fm - ft).abs() <= 0.05, "{fm} against {ft}");
+        p2p
+    };
+    let p2p = p2p_error(&r.follow);
     assert!(p2p.abs() <= 0.03, "{p2p}");
+    // The lateral motion as matched is the decode window's three-frame mean, 1.6 % short at
+    // 4.2 Hz; moving the samples to the window's centre takes most of that back.
+    let as_matched = p2p_error(&r.follow_window_mean);
+    assert!(
+        p2p - as_matched > 0.005,
+        "{p2p} against {as_matched} as matched"
+    );
     // The pixel moves with the skin: it spans the sway's several pixels.
     let vs: Vec<f64> = r
         .follow

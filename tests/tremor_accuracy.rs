@@ -76,15 +76,11 @@ fn track(config: &RigConfig, frames: &[Frame], kept: impl Fn(u64) -> bool) -> Ve
                     frame: i,
                     pixel: Some(pixel),
                     position_mm: locate(&cloud, pixel, &TrackOptions::default()),
+                    slope_mm_per_px: None,
                 });
             }
             WindowOutcome::Filling { .. } => {}
-            _ => samples.push(TrackSample {
-                time_s: centre_s,
-                frame: i,
-                pixel: None,
-                position_mm: None,
-            }),
+            _ => samples.push(TrackSample::missing(centre_s, i)),
         }
     }
     samples

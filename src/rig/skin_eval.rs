@@ -10,10 +10,10 @@
 //! hand's sway and roll.
 
 use super::{RigError, Scene, VirtualRig};
-use crate::decode::{DecodeError, DecodeParams, SlidingDecoder, WindowOutcome};
+use crate::decode::{frames_averaged, DecodeError, DecodeParams, SlidingDecoder, WindowOutcome};
 use crate::tremor::{
-    analyze, displacements, principal_axis, AnalysisOptions, ControlPoint, FollowOptions,
-    PointMode, TextureImage, TrackOptions, TrackSample, TremorError, TremorReport,
+    analyze, displacements, principal_axis, undo_window_mean, AnalysisOptions, ControlPoint,
+    FollowOptions, PointMode, TextureImage, TrackOptions, TrackSample, TremorError, TremorReport,
 };
 use crate::triangulate::{PointCloud, TriangulateError, Triangulator};
 
@@ -110,7 +110,11 @@ impl TrackAgainstTruth {
 pub struct SkinTracking {
     /// Where the point was placed, camera px.
     pub placed_at: (f64, f64),
+    /// Following the skin, as `track` and `analyze` give it (the window's mean undone where
+    /// the decode gives the centre time: `tremor::window_mean`).
     pub follow: TrackAgainstTruth,
+    /// Following the skin, as matched in each window's offset image (before that step).
+    pub follow_window_mean: TrackAgainstTruth,
     pub fixed: TrackAgainstTruth,
 }
 
@@ -155,12 +159,7 @@ pub fn skin_tracking(
             .ok_or(SkinEvalError::NoPoint(point))?;
         if !decoded {
             if points.is_some() {
-                let missing = TrackSample {
-                    time_s,
-                    frame: i as usize,
-                    pixel: None,
-                    position_mm: None,
-                };
+                let missing = TrackSample::missing(time_s, i as usize);
                 follow.push(missing);
                 fixed.push(missing);
                 truth.push([material.x, material.y, material.z]);
@@ -189,10 +188,18 @@ pub fn skin_tracking(
     if points.is_none() {
         return Err(SkinEvalError::NothingDecoded);
     }
+    let as_matched = follow.clone();
+    if frames_averaged(&rig.sequence, &params) == 1 {
+        undo_window_mean(&mut follow);
+    }
     Ok(SkinTracking {
         placed_at,
         follow: TrackAgainstTruth {
             samples: follow,
+            truth_mm: truth.clone(),
+        },
+        follow_window_mean: TrackAgainstTruth {
+            samples: as_matched,
             truth_mm: truth.clone(),
         },
         fixed: TrackAgainstTruth {

@@ -106,6 +106,7 @@ pub fn fingertip_tremor(
             frame: i as usize,
             pixel: Some(pixel),
             position_mm,
+            slope_mm_per_px: None,
         });
     }
     let ray = config

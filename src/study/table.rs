@@ -42,6 +42,13 @@ pub struct StudyRow {
     pub occupancy: Option<f64>,
     pub frequency_stability_hz: Option<f64>,
     pub updrs_amplitude_bin: Option<u8>,
+    /// The TETRAS amplitude rating (`tremor::measures`; empty without figures).
+    pub tetras_amplitude_rating: String,
+    pub tremor_stability_index_hz: Option<f64>,
+    pub half_power_bandwidth_hz: Option<f64>,
+    pub harmonic_relative_power: Option<f64>,
+    /// The peak of the three coordinates' summed spectrum.
+    pub spectrum_3d_peak_hz: Option<f64>,
     /// The clinical band labels, joined with `; `.
     pub frequency_bands: String,
     pub software_version: String,
@@ -107,6 +114,11 @@ pub fn table_columns() -> Vec<&'static str> {
         "occupancy",
         "frequency_stability_hz",
         "updrs_amplitude_bin",
+        "tetras_amplitude_rating",
+        "tremor_stability_index_hz",
+        "half_power_bandwidth_hz",
+        "harmonic_relative_power",
+        "spectrum_3d_peak_hz",
         "frequency_bands",
         "software_version",
         "error",

@@ -94,13 +94,16 @@ pub struct TremorReport {
 }
 
 impl TremorReport {
-    /// The field's measures in one line: TETRAS rating, TSI, bandwidth, harmonic power; a
-    /// measure the record cannot give is "—".
+    /// The field's measures in one line: the amplitude in cm with its TETRAS rating, the
+    /// share of time with tremor, TSI, bandwidth, harmonic power; a measure the record cannot
+    /// give is "—".
     pub fn measures_line(&self) -> String {
         let hz = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.2} Hz"));
         format!(
-            "TETRAS amplitude {} · TSI {} · half-power bandwidth {} · 1st harmonic {}",
+            "{:.2} cm, TETRAS amplitude {} · tremor {:.0} % of the time · TSI {} · half-power bandwidth {} · 1st harmonic {}",
+            self.amplitude_peak_to_peak_mm / 10.0,
             self.tetras_amplitude_rating,
+            100.0 * self.occupancy,
             hz(self.tremor_stability_index_hz),
             hz(self.half_power_bandwidth_hz),
             self.harmonic_relative_power

@@ -146,10 +146,8 @@ mod tests {
                     + Vector3::new(0.2 * t, 0.0, 0.0)
                     + direction.cross(&Vector3::x()).normalize() * 0.4 * (TAU * f_hz * t + 1.0).sin();
                 TrackSample {
-                    time_s: t,
-                    frame: i,
-                    pixel: None,
                     position_mm: (drop_every == 0 || i % drop_every != 0).then_some([p.x, p.y, p.z]),
+                    ..TrackSample::missing(t, i)
                 }
             })
             .collect()

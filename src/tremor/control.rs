@@ -57,7 +57,8 @@ impl ControlPoint {
     }
 
     /// Measures the point in `cloud` (whose luminance is `image`, filled by the caller once per
-    /// cloud for all points), the window ending at source frame `frame`.
+    /// cloud for all points), the window ending at source frame `frame`. A followed point's
+    /// sample keeps the surface's slope at the match, for [`super::undo_window_mean`].
     pub fn measure(
         &mut self,
         cloud: &PointCloud,
@@ -66,8 +67,11 @@ impl ControlPoint {
         track: &TrackOptions,
         follow: &FollowOptions,
     ) -> TrackSample {
-        let (pixel, position_mm) = match self.mode {
-            PointMode::FixedPixel => (Some(self.placed_at), locate(cloud, self.placed_at, track)),
+        let (pixel, located) = match self.mode {
+            PointMode::FixedPixel => (
+                Some(self.placed_at),
+                locate(cloud, self.placed_at, track).map(|p| (p, None)),
+            ),
             PointMode::FollowSkin => {
                 let matched = match (&mut self.follower, &self.error) {
                     (_, Some(_)) => None,
@@ -83,15 +87,18 @@ impl ControlPoint {
                         }
                     },
                 };
-                let position = matched.and_then(|p| locate_subpixel(cloud, p, track));
-                (matched, position)
+                let located = matched
+                    .and_then(|p| locate_subpixel(cloud, p, track))
+                    .map(|(p, slope)| (p, Some(slope)));
+                (matched, located)
             }
         };
         TrackSample {
             time_s: cloud.time_s,
             frame,
             pixel,
-            position_mm,
+            position_mm: located.map(|(p, _)| p),
+            slope_mm_per_px: located.and_then(|(_, slope)| slope),
         }
     }
 }

@@ -39,7 +39,7 @@
 //! the neighbourhood's points, outliers removed as [`super::locate`] does, fitted as an affine
 //! function of the pixel offset and evaluated at the exact location.
 
-use super::track::{median, TrackOptions};
+use super::track::{median, SurfaceSlope, TrackOptions};
 use crate::triangulate::PointCloud;
 use nalgebra::{SMatrix, SVector};
 
@@ -362,15 +362,17 @@ impl SkinFollower {
     }
 }
 
-/// The 3D position (camera frame, mm) of the surface at sub-pixel `pixel`: the valid points
-/// of the `(2·radius + 1)²` neighbourhood, outliers removed as in [`super::locate`], fitted by
-/// least squares as `p(u, v) = p₀ + p_u·Δu + p_v·Δv` and evaluated at `pixel` (`p₀`). `None`
-/// with fewer than `min_valid_fraction` of the neighbourhood valid.
+/// The 3D position (camera frame, mm) of the surface at sub-pixel `pixel`, with its slope
+/// there: the valid points of the `(2·radius + 1)²` neighbourhood, outliers removed as in
+/// [`super::locate`], fitted by least squares as `p(u, v) = p₀ + p_u·Δu + p_v·Δv` and evaluated
+/// at `pixel`: `(p₀, [p_u, p_v])` (the slope is zero where too few inliers leave the
+/// neighbourhood's median as the position). `None` with fewer than `min_valid_fraction` of the
+/// neighbourhood valid.
 pub fn locate_subpixel(
     cloud: &PointCloud,
     pixel: (f64, f64),
     options: &TrackOptions,
-) -> Option<[f64; 3]> {
+) -> Option<([f64; 3], SurfaceSlope)> {
     let (cu, cv) = (pixel.0.round(), pixel.1.round());
     if cu < 0.0 || cv < 0.0 || cu >= cloud.width as f64 || cv >= cloud.height as f64 {
         return None;
@@ -405,7 +407,7 @@ pub fn locate_subpixel(
         let mut dev: Vec<f64> = v.iter().map(|x| (x - centre[axis]).abs()).collect();
         scale[axis] = (1.4826 * median(&mut dev)).max(0.05);
     }
-    let fit = |subset: &[&([f64; 3], f64, f64)]| -> Option<[f64; 3]> {
+    let fit = |subset: &[&([f64; 3], f64, f64)]| -> Option<([f64; 3], SurfaceSlope)> {
         let mut normal = nalgebra::Matrix3::<f64>::zeros();
         let mut rhs = [nalgebra::Vector3::<f64>::zeros(); 3];
         for (p, du, dv) in subset {
@@ -416,20 +418,24 @@ pub fn locate_subpixel(
             }
         }
         let lu = normal.lu();
-        let mut out = [0.0; 3];
+        let (mut out, mut slope) = ([0.0; 3], [[0.0; 3]; 2]);
         for axis in 0..3 {
-            out[axis] = lu.solve(&rhs[axis])?[0];
+            let c = lu.solve(&rhs[axis])?;
+            out[axis] = c[0];
+            slope[0][axis] = c[1];
+            slope[1][axis] = c[2];
         }
-        Some(out)
+        Some((out, slope))
     };
     let inliers: Vec<&([f64; 3], f64, f64)> = points
         .iter()
         .filter(|p| (0..3).all(|a| (p.0[a] - centre[a]).abs() <= options.outlier_k * scale[a]))
         .collect();
+    let flat = (centre, [[0.0; 3]; 2]);
     if inliers.len() < 3 {
-        return Some(centre);
+        return Some(flat);
     }
-    fit(&inliers).or(Some(centre))
+    fit(&inliers).or(Some(flat))
 }
 
 #[cfg(test)]
@@ -564,13 +570,22 @@ mod tests {
         let mut c = cloud(|u, v| (u, v), |_, _| false, 1.0);
         // One wild point in the neighbourhood is left out.
         c.point_in_camera_mm[41 * 120 + 51] = [0.0, 0.0, 900.0];
-        let p = locate_subpixel(&c, (50.3, 40.6), &TrackOptions::default()).expect("valid");
+        let (p, slope) =
+            locate_subpixel(&c, (50.3, 40.6), &TrackOptions::default()).expect("valid");
         let expected = [(50.3 - 60.0) * 0.4, (40.6 - 45.0) * 0.4, 500.0 + 0.1 * 50.3];
+        // The surface's change per pixel along u and along v.
+        let expected_slope = [[0.4, 0.0, 0.1], [0.0, 0.4, 0.0]];
         for a in 0..3 {
             assert!(
                 (p[a] - expected[a]).abs() < 1e-3,
                 "{p:?} against {expected:?}"
             );
+            for d in 0..2 {
+                assert!(
+                    (slope[d][a] - expected_slope[d][a]).abs() < 1e-4,
+                    "{slope:?} against {expected_slope:?}"
+                );
+            }
         }
     }
 }

@@ -12,6 +12,7 @@ use super::analysis::{analyze, AnalysisOptions, TremorReport};
 use super::control::{ControlPoint, PointMode};
 use super::follow::{FollowOptions, TextureImage};
 use super::track::{displacements, TrackOptions, TrackSample};
+use super::window_mean::undo_window_mean;
 use super::TremorError;
 use crate::triangulate::PointCloud;
 use nalgebra::Vector3;
@@ -40,10 +41,25 @@ impl LivePoint {
         self.control.error().map(ToString::to_string)
     }
 
+    /// The history for analysis: as measured, and where the decode gives the window's centre
+    /// time (`window_frames` 1) a followed point moved there too ([`undo_window_mean`]; the
+    /// newest four samples stay as measured until their neighbours arrive).
+    pub fn history(&self, window_frames: usize) -> Vec<TrackSample> {
+        let mut samples: Vec<TrackSample> = self.samples.iter().copied().collect();
+        if window_frames == 1 {
+            undo_window_mean(&mut samples);
+        }
+        samples
+    }
+
     /// Times (s) and displacements along `axis` (mm, relative to the median position; `None`
-    /// where the point was not measured) of the history.
-    pub fn displacement_series(&self, axis: &Vector3<f64>) -> (Vec<f64>, Vec<Option<f64>>) {
-        let samples: Vec<TrackSample> = self.samples.iter().copied().collect();
+    /// where the point was not measured) of [`Self::history`].
+    pub fn displacement_series(
+        &self,
+        axis: &Vector3<f64>,
+        window_frames: usize,
+    ) -> (Vec<f64>, Vec<Option<f64>>) {
+        let samples = self.history(window_frames);
         let times = samples.iter().map(|s| s.time_s).collect();
         (times, displacements(&samples, axis))
     }
@@ -54,7 +70,7 @@ impl LivePoint {
         axis: &Vector3<f64>,
         options: &AnalysisOptions,
     ) -> Result<TremorReport, TremorError> {
-        let (times, d) = self.displacement_series(axis);
+        let (times, d) = self.displacement_series(axis, options.window_frames);
         analyze(&times, &d, options)
     }
 

@@ -20,22 +20,14 @@
 //!   5–10, 3.5 for 10–20, 4 for 20 or more. Below 1 cm the scale separates 1 ("barely
 //!   visible") from 1.5 by eye, not by a length, so the measure says "1–1.5"; with no tremor
 //!   peak it is 0.
-//! - **Magnitude-squared coherence** between two records (Welch: Hann segments, 50 % overlap,
-//!   each detrended): `|S_xy|² / (S_xx·S_yy)` per frequency, reported as its value at a
-//!   frequency and its mean over 2–12 Hz. One segment gives 1 everywhere, so at least
-//!   [`COHERENCE_MIN_SEGMENTS`] are needed.
+//! - **Magnitude-squared coherence** between two points: [`super::coherence`].
 
-use super::spectrum::{detrend_linear, Psd};
-use realfft::RealFftPlanner;
+use super::spectrum::Psd;
 
 /// Cycle-to-cycle changes a TSI needs.
 pub const TSI_MIN_CHANGES: usize = 8;
 /// Half width of the bands compared by the harmonic's relative power, Hz.
 pub const HARMONIC_HALF_WIDTH_HZ: f64 = 0.5;
-/// Welch segments a coherence needs.
-pub const COHERENCE_MIN_SEGMENTS: usize = 4;
-/// The band the coherence is summarised over, Hz.
-pub const COHERENCE_BAND_HZ: (f64, f64) = (2.0, 12.0);
 
 /// Times (s, from the record's start) of the upward zero crossings of `x`.
 fn upward_crossings(x: &[f64], rate_hz: f64) -> Vec<f64> {
@@ -128,92 +120,6 @@ pub fn tetras_amplitude_rating(peak_to_peak_mm: f64, has_peak: bool) -> &'static
     }
 }
 
-/// Magnitude-squared coherence of two records per frequency.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Coherence {
-    pub frequency_hz: Vec<f64>,
-    pub msc: Vec<f64>,
-    pub segments: usize,
-}
-
-impl Coherence {
-    /// The coherence at the bin nearest `f` Hz.
-    pub fn at(&self, f: f64) -> Option<f64> {
-        let df = self.frequency_hz.get(1)?;
-        self.msc.get((f / df).round() as usize).copied()
-    }
-
-    /// The mean coherence over the bins in `[lo, hi]` Hz.
-    pub fn band_mean(&self, (lo, hi): (f64, f64)) -> Option<f64> {
-        let inside: Vec<f64> = self
-            .frequency_hz
-            .iter()
-            .zip(&self.msc)
-            .filter(|(f, _)| **f >= lo && **f <= hi)
-            .map(|(_, c)| *c)
-            .collect();
-        (!inside.is_empty()).then(|| inside.iter().sum::<f64>() / inside.len() as f64)
-    }
-}
-
-/// Coherence of `x` and `y` (same rate and length) with `segment` samples per segment.
-pub fn coherence(x: &[f64], y: &[f64], rate_hz: f64, segment: usize) -> Option<Coherence> {
-    if x.len() != y.len() || segment < 8 {
-        return None;
-    }
-    let window: Vec<f64> = (0..segment)
-        .map(|i| 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / segment as f64).cos())
-        .collect();
-    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(segment);
-    let (mut input, mut sx, mut sy) = (
-        fft.make_input_vec(),
-        fft.make_output_vec(),
-        fft.make_output_vec(),
-    );
-    let bins = segment / 2 + 1;
-    let (mut pxx, mut pyy) = (vec![0.0; bins], vec![0.0; bins]);
-    let mut pxy = vec![realfft::num_complex::Complex::<f64>::new(0.0, 0.0); bins];
-    let mut segments = 0;
-    let mut start = 0;
-    while start + segment <= x.len() {
-        for (series, out) in [(x, &mut sx), (y, &mut sy)] {
-            let mut seg = series[start..start + segment].to_vec();
-            detrend_linear(&mut seg);
-            for (i, v) in input.iter_mut().enumerate() {
-                *v = seg[i] * window[i];
-            }
-            fft.process(&mut input, out).ok()?;
-        }
-        for k in 0..bins {
-            pxx[k] += sx[k].norm_sqr();
-            pyy[k] += sy[k].norm_sqr();
-            pxy[k] += sx[k] * sy[k].conj();
-        }
-        segments += 1;
-        start += segment / 2;
-    }
-    if segments < COHERENCE_MIN_SEGMENTS {
-        return None;
-    }
-    let msc = (0..bins)
-        .map(|k| {
-            let d = pxx[k] * pyy[k];
-            if d > 0.0 {
-                pxy[k].norm_sqr() / d
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    Some(Coherence {
-        frequency_hz: (0..bins)
-            .map(|k| k as f64 * rate_hz / segment as f64)
-            .collect(),
-        msc,
-        segments,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -221,21 +127,6 @@ mod tests {
     use std::f64::consts::TAU;
 
     const RATE: f64 = 121.0;
-
-    /// Deterministic noise, uniform in [−1, 1].
-    fn noise(seed: u64, n: usize) -> Vec<f64> {
-        let mut s = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (0..n)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-            })
-            .collect()
-    }
 
     #[test]
     fn tsi_of_a_steady_tremor_is_near_zero_and_of_a_wandering_one_is_its_spread() {
@@ -299,36 +190,6 @@ mod tests {
         let h = harmonic_relative_power(&psd, 5.0).unwrap();
         assert!((h - 0.09).abs() < 0.005, "{h}");
         assert_eq!(harmonic_relative_power(&psd, 40.0), None);
-    }
-
-    #[test]
-    fn coherence_of_related_and_unrelated_records() {
-        let n = (30.0 * RATE) as usize;
-        let (a, b) = (noise(1, n), noise(2, n));
-        let tremor = |phase: f64| -> Vec<f64> {
-            (0..n)
-                .map(|i| (TAU * 5.0 * i as f64 / RATE + phase).sin())
-                .collect()
-        };
-        // Two points sharing a 5 Hz tremor at a fixed phase lag, each with its own noise.
-        let (t0, t1) = (tremor(0.0), tremor(1.2));
-        let x: Vec<f64> = t0.iter().zip(&a).map(|(t, e)| t + 0.3 * e).collect();
-        let y: Vec<f64> = t1.iter().zip(&b).map(|(t, e)| t + 0.3 * e).collect();
-        let c = coherence(&x, &y, RATE, 2 * RATE as usize).unwrap();
-        assert!(c.at(5.0).unwrap() > 0.95, "{:?}", c.at(5.0));
-        // Noise against noise: the coherence's bias for K segments is about 1/K.
-        let c = coherence(&a, &b, RATE, 2 * RATE as usize).unwrap();
-        let mean = c.band_mean(COHERENCE_BAND_HZ).unwrap();
-        assert!(
-            mean < 3.0 / c.segments as f64,
-            "{mean} over {} segments",
-            c.segments
-        );
-        // Too short for four segments: no figure.
-        assert_eq!(
-            coherence(&x[..300], &y[..300], RATE, 2 * RATE as usize),
-            None
-        );
     }
 
     #[test]

@@ -1,11 +1,13 @@
 //! Tremor measurement: control points tracked in the organised cloud at a fixed pixel
-//! ([`track`]) or following the skin ([`follow`]), the
+//! ([`track`]) or following the skin ([`follow`], [`control`]; the decode window's mean undone
+//! offline in [`window_mean`]), the
 //! table's plane and frame ([`table`]), spectral tools
 //! ([`spectrum`]), the clinical figures of a displacement series ([`analysis`]) and points
 //! tracked live for the GUI ([`live`]).
 
 pub mod analysis;
 pub mod axes;
+pub mod coherence;
 pub mod control;
 pub mod follow;
 pub mod live;
@@ -13,6 +15,7 @@ pub mod measures;
 pub mod spectrum;
 pub mod table;
 pub mod track;
+pub mod window_mean;
 
 pub use analysis::{analyze, AnalysisOptions, TremorReport};
 pub use axes::{principal_axis, summed_spectrum_peak, DisplacementAxis};
@@ -20,7 +23,10 @@ pub use control::{ControlPoint, PointMode};
 pub use follow::{locate_subpixel, FollowError, FollowOptions, SkinFollower, TextureImage};
 pub use live::{LivePoint, LiveTracker};
 pub use table::{fit_table_normal, fit_table_plane, TableFrame, TablePlane};
-pub use track::{displacements, locate, pixel_of, TrackOptions, TrackSample, VerticalAxis};
+pub use track::{
+    displacements, locate, pixel_of, SurfaceSlope, TrackOptions, TrackSample, VerticalAxis,
+};
+pub use window_mean::undo_window_mean;
 
 /// Errors of tremor analysis.
 #[derive(Debug, thiserror::Error, PartialEq)]

@@ -125,6 +125,26 @@ pub struct TrackSample {
     /// when it follows it; `None` where the skin patch was lost.
     pub pixel: Option<(f64, f64)>,
     pub position_mm: Option<[f64; 3]>,
+    /// The surface's 3D change per camera pixel along u and along v at `pixel`, camera frame,
+    /// mm/px: kept for a followed point, whose position [`super::undo_window_mean`] moves along
+    /// it; `None` at a fixed pixel, where nothing was measured, and once that step is done.
+    pub slope_mm_per_px: Option<SurfaceSlope>,
+}
+
+/// A surface's slope at a pixel: its 3D change per pixel along u and along v, mm/px.
+pub type SurfaceSlope = [[f64; 3]; 2];
+
+impl TrackSample {
+    /// The sample of a window where nothing was measured.
+    pub fn missing(time_s: f64, frame: usize) -> Self {
+        Self {
+            time_s,
+            frame,
+            pixel: None,
+            position_mm: None,
+            slope_mm_per_px: None,
+        }
+    }
 }
 
 /// Displacements along `axis` relative to the median position of the valid samples, mm; `None`

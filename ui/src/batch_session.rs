@@ -9,8 +9,8 @@
 //! `--force`; the error is the same until then.
 
 use crate::export_cmd::ControlPoints;
+use crate::point_analysis::{analyze_tracks, PointOutcome};
 use crate::session_tracking::{track_session, Feedback};
-use crate::tremor_cmd::{analyze_tracks, PointOutcome};
 use crate::unwrap_args::UnwrapArgs;
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
@@ -216,7 +216,8 @@ fn analyse(job: &SessionJob<'_>, session_dir: &Path, dir: &Path) -> Result<Vec<S
     )?;
     let outcomes = analyze_tracks(
         frames_averaged(&session.sequence()?, &params),
-        &tracked,
+        &tracked.tracks,
+        &tracked.axis,
         &names,
         &pixels,
         tremorscan::tremor::DisplacementAxis::Vertical,
@@ -267,6 +268,11 @@ fn point_row(job: &SessionJob<'_>, trial: &TrialJson, index: usize, o: &PointOut
             row.occupancy = Some(r.occupancy);
             row.frequency_stability_hz = r.frequency_stability_hz;
             row.updrs_amplitude_bin = Some(r.updrs_amplitude_bin);
+            row.tetras_amplitude_rating = r.tetras_amplitude_rating.to_string();
+            row.tremor_stability_index_hz = r.tremor_stability_index_hz;
+            row.half_power_bandwidth_hz = r.half_power_bandwidth_hz;
+            row.harmonic_relative_power = r.harmonic_relative_power;
+            row.spectrum_3d_peak_hz = o.spectrum_3d_peak_hz;
             row.frequency_bands = r.frequency_bands.join("; ");
         }
         Err(why) => {

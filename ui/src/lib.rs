@@ -12,6 +12,7 @@ pub mod export_cmd;
 pub mod gpu_decode;
 pub mod gui;
 pub mod pipeline_cmd;
+pub mod point_analysis;
 pub mod progress;
 pub mod render;
 pub mod report_png;

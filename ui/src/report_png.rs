@@ -7,6 +7,7 @@ use anyhow::{anyhow, Context, Result};
 use plotters::prelude::*;
 use std::path::Path;
 use std::sync::Once;
+use tremorscan::tremor::coherence::{coherence_line, PairCoherence};
 use tremorscan::tremor::TremorReport;
 
 const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
@@ -28,6 +29,8 @@ pub struct PointFigure {
     pub displacement_mm: Vec<Option<f64>>,
     /// The figures, or why they are missing (too few valid samples).
     pub report: Result<TremorReport, String>,
+    /// The coherence with each other point.
+    pub coherence: Vec<PairCoherence>,
 }
 
 /// Writes the report for `points` to `path` (PNG, 1200 px wide, 500 px per point).
@@ -138,10 +141,10 @@ fn draw_point(area: &Area<'_>, point: &PointFigure) -> Result<(), Box<dyn std::e
         RGBColor(230, 236, 250).filled(),
     )))?;
     chart.draw_series(LineSeries::new(spectrum, &RED))?;
-    bottom.draw_text(
-        &r.measures_line(),
-        &("sans-serif", 15).into_text_style(&bottom),
-        (80, 12),
-    )?;
+    let style = ("sans-serif", 15).into_text_style(&bottom);
+    bottom.draw_text(&r.measures_line(), &style, (80, 12))?;
+    if let Some(line) = coherence_line(&point.coherence) {
+        bottom.draw_text(&line, &style, (80, 32))?;
+    }
     Ok(())
 }

@@ -2,21 +2,23 @@
 //! need them: the session decoded window by window with one sliding decoder (so the motion
 //! model sees the stream), each window triangulated, and each point measured in the organised
 //! cloud as a `tremor::ControlPoint`: following the skin it was placed on in the first decoded
-//! window (the default), or at its fixed pixel (`--fixed-pixel`). A point whose skin shows too
-//! little texture to follow is an error that names it. A window that does not decode is an invalid sample of
-//! every point, never a skipped one, so the samples stay one per window. The table plane is
-//! fitted in the first decoded window: it gives the vertical axis when asked for (`table`) and
-//! the table frame the exports use.
+//! window (the default), or at its fixed pixel (`--fixed-pixel`). Once the session is done, a
+//! followed track is moved from the decode window's mean to its centre time
+//! (`tremor::window_mean`). A point whose skin shows too little texture to follow is an error
+//! that names it. A window that does not decode is an invalid sample of every point, never a
+//! skipped one, so the samples stay one per window. The table plane is fitted in the first
+//! decoded window: it gives the vertical axis when asked for (`table`) and the table frame the
+//! exports use.
 
 use crate::progress::Progress;
 use anyhow::{bail, Context, Result};
 use nalgebra::Vector3;
-use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
+use tremorscan::decode::{frames_averaged, DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::export::{MotionFrame, PointTrack, TrialMotion};
 use tremorscan::session::Session;
 use tremorscan::tremor::{
-    fit_table_plane, ControlPoint, FollowOptions, PointMode, TableFrame, TablePlane, TextureImage,
-    TrackOptions, TrackSample,
+    fit_table_plane, undo_window_mean, ControlPoint, FollowOptions, PointMode, TableFrame,
+    TablePlane, TextureImage, TrackOptions, TrackSample,
 };
 use tremorscan::triangulate::{PointCloud, Triangulator};
 
@@ -122,6 +124,9 @@ pub fn track_session(
         .cross_talk()?
         .unwrap_or_else(tremorscan::color::CrossTalk::identity);
     let window = sequence.entries.len() as f64;
+    // Where the decode gives the depth at the window's centre time, a followed point's lateral
+    // position is moved there too (`tremor::window_mean`).
+    let undo_mean = mode == PointMode::FollowSkin && frames_averaged(&sequence, &params) == 1;
     let mut decoder = SlidingDecoder::new(sequence, cross_talk, params)?
         .with_max_span((window - 0.5) / fps.max(1e-3));
     let triangulator = Triangulator::new(session.stereo_model()?)?;
@@ -179,12 +184,7 @@ pub fn track_session(
             track.push(if decoded {
                 control.measure(&cloud, &image, i, &track_options, &follow_options)
             } else {
-                TrackSample {
-                    time_s: centre_s,
-                    frame: i,
-                    pixel: None,
-                    position_mm: None,
-                }
+                TrackSample::missing(centre_s, i)
             });
             if let Some(e) = control.error() {
                 bail!("point {k}: {e} (--fixed-pixel)");
@@ -196,6 +196,9 @@ pub fn track_session(
     }
     if let Some(p) = progress.as_mut() {
         p.finish();
+    }
+    if undo_mean {
+        tracks.iter_mut().for_each(|t| undo_window_mean(t));
     }
     let axis = axis.context("no window decoded, so no table plane could be fitted")?;
     Ok(SessionTracks {

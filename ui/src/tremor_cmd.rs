@@ -1,22 +1,17 @@
 //! `tremorscan track` and `analyze`: control points tracked through every window of a session,
 //! written as CSV, and their clinical tremor figures as JSON (the tracking itself is
-//! `session_tracking`).
+//! `session_tracking`, the figures `point_analysis`).
 
+use crate::point_analysis::{analyze_tracks, PointOutcome};
 use crate::session_tracking::{track_session, Feedback, PointModeArgs, SessionTracks};
 use crate::unwrap_args::UnwrapArgs;
 use anyhow::{Context, Result};
 use nalgebra::Vector3;
-use serde_json::json;
 use std::io::Write;
 use std::path::PathBuf;
 use tremorscan::decode::{frames_averaged, DecodeParams};
 use tremorscan::session::Session;
-use tremorscan::tremor::measures::{coherence, COHERENCE_BAND_HZ};
-use tremorscan::tremor::spectrum::resample;
-use tremorscan::tremor::{
-    analyze, displacements, pixel_of, principal_axis, summed_spectrum_peak, AnalysisOptions,
-    DisplacementAxis, TrackSample, TremorError, TremorReport,
-};
+use tremorscan::tremor::{displacements, pixel_of, AnalysisOptions, DisplacementAxis, TrackSample};
 
 /// The control points and the vertical axis, shared by `track` and `analyze`.
 #[derive(clap::Args, Debug, Clone)]
@@ -170,36 +165,6 @@ pub fn track_csv(points: &[TrackColumn<'_>]) -> String {
     out
 }
 
-/// The JSON object of one point's tremor figures.
-pub fn report_json(pixel: (f64, f64), r: &TremorReport, axis: &Vector3<f64>) -> serde_json::Value {
-    json!({
-        "pixel": [pixel.0, pixel.1],
-        "valid_fraction": r.valid_fraction,
-        "longest_gap_s": r.longest_gap_s,
-        "duration_s": r.duration_s,
-        "peak_frequency_hz": r.peak_frequency_hz,
-        "peaks_hz": r.peaks_hz,
-        "amplitude_peak_to_peak_mm": r.amplitude_peak_to_peak_mm,
-        "amplitude_peak_to_peak_cm": r.amplitude_peak_to_peak_mm / 10.0,
-        "amplitude_rms_mm": r.amplitude_rms_mm,
-        "band_power_3_12": r.band_power_mm2,
-        "band_power_4_6": r.narrow_band_power_mm2,
-        "occupancy": r.occupancy,
-        "frequency_stability": r.frequency_stability_hz,
-        "updrs_amplitude_bin": r.updrs_amplitude_bin,
-        "tetras_amplitude_rating": r.tetras_amplitude_rating,
-        "tremor_stability_index_hz": r.tremor_stability_index_hz,
-        "half_power_bandwidth_hz": r.half_power_bandwidth_hz,
-        "harmonic_relative_power": r.harmonic_relative_power,
-        "frequency_bands": r.frequency_bands,
-        "vertical_axis": [axis.x, axis.y, axis.z],
-        "spectrum": {
-            "frequency_hz": r.spectrum.frequency_hz,
-            "psd_mm2_per_hz": r.spectrum.density,
-        },
-    })
-}
-
 /// How `session` is decoded for tracking, printed.
 fn decoding_of(session: &Session, control: &ControlPointArgs) -> Result<DecodeParams> {
     let decoding = control
@@ -261,148 +226,6 @@ pub fn run_track(args: &TrackArgs) -> Result<()> {
     Ok(())
 }
 
-/// One control point's analysis.
-pub struct PointOutcome {
-    pub name: String,
-    pub pixel: (f64, f64),
-    pub times_s: Vec<f64>,
-    /// Along `axis`.
-    pub displacement_mm: Vec<Option<f64>>,
-    /// Which axis the displacement and figures are along, and its unit vector (camera frame).
-    pub axis_name: &'static str,
-    pub axis: Vector3<f64>,
-    /// The principal axis of the band-passed 3D motion (`None`: too little measured).
-    pub principal_axis: Option<Vector3<f64>>,
-    /// The peak of the summed 3-axis spectrum, Hz.
-    pub spectrum_3d_peak_hz: Option<f64>,
-    /// Coherence with each other point: name, at this point's peak, mean over 2–12 Hz.
-    pub coherence: Vec<(String, Option<f64>, Option<f64>)>,
-    /// The figures, or why they are missing (too little was measured).
-    pub report: Result<TremorReport, String>,
-}
-
-impl PointOutcome {
-    /// The JSON object `analyze` writes for this point; `vertical` is the vertical axis.
-    pub fn json(&self, vertical: &Vector3<f64>) -> serde_json::Value {
-        let (u, v) = self.pixel;
-        let mut object = match &self.report {
-            Ok(r) => report_json(self.pixel, r, vertical),
-            Err(why) => json!({ "pixel": [u, v], "figures_missing": why }),
-        };
-        let vector = |a: &Vector3<f64>| json!([a.x, a.y, a.z]);
-        object["name"] = json!(self.name);
-        object["displacement_axis"] = json!({ "name": self.axis_name, "unit": vector(&self.axis) });
-        object["principal_axis"] = self.principal_axis.as_ref().map_or(json!(null), vector);
-        object["spectrum_3d_peak_hz"] = json!(self.spectrum_3d_peak_hz);
-        object["coherence"] = self
-            .coherence
-            .iter()
-            .map(|(other, at_peak, mean)| {
-                json!({ "with": other, "at_peak": at_peak, "mean_2_12_hz": mean })
-            })
-            .collect();
-        object
-    }
-
-    /// The point's panel in the report figure.
-    pub fn figure(&self) -> crate::report_png::PointFigure {
-        crate::report_png::PointFigure {
-            label: self.name.clone(),
-            times_s: self.times_s.clone(),
-            displacement_mm: self.displacement_mm.clone(),
-            report: self.report.clone(),
-        }
-    }
-}
-
-/// The displacement series of two points on one uniform grid, and its rate.
-fn common_grid(
-    times_s: &[f64],
-    a: &[Option<f64>],
-    b: &[Option<f64>],
-) -> Option<(Vec<f64>, Vec<f64>, f64)> {
-    let (x, y) = (resample(times_s, a)?, resample(times_s, b)?);
-    (x.valid_fraction >= 0.5 && y.valid_fraction >= 0.5).then_some((x.values, y.values, x.rate_hz))
-}
-
-/// The tremor figures of every tracked point along `axis`. A point with too little measured
-/// gets the reason instead of figures; any other analysis failure is an error naming the point.
-pub fn analyze_tracks(
-    sequence_frames_averaged: usize,
-    tracked: &SessionTracks,
-    names: &[String],
-    pixels: &[(f64, f64)],
-    axis: DisplacementAxis,
-) -> Result<Vec<PointOutcome>> {
-    // The analysis undoes the averaging that the decode leaves.
-    let options = AnalysisOptions {
-        window_frames: sequence_frames_averaged,
-        ..AnalysisOptions::default()
-    };
-    let mut outcomes = Vec::new();
-    for ((track, name), &pixel) in tracked.tracks.iter().zip(names).zip(pixels) {
-        let times_s: Vec<f64> = track.iter().map(|s| s.time_s).collect();
-        let principal = principal_axis(track, options.band_hz);
-        let unit = match axis {
-            DisplacementAxis::Principal => principal,
-            other => other.unit(&tracked.axis, track, &options),
-        };
-        let (displacement_mm, report) = match unit {
-            Some(unit) => {
-                let d = displacements(track, &unit);
-                let report = match analyze(&times_s, &d, &options) {
-                    Ok(r) => Ok(r),
-                    // Too little was measured at this point: say so, keep the others' figures.
-                    Err(e @ TremorError::TooFewValid { .. }) => Err(e.to_string()),
-                    Err(e) => return Err(e).with_context(|| format!("point `{name}`")),
-                };
-                (d, report)
-            }
-            None => (
-                vec![None; track.len()],
-                Err("figures missing: too little was measured for a principal axis".to_string()),
-            ),
-        };
-        outcomes.push(PointOutcome {
-            name: name.clone(),
-            pixel,
-            times_s,
-            displacement_mm,
-            axis_name: axis.name(),
-            axis: unit.unwrap_or(tracked.axis),
-            principal_axis: principal,
-            spectrum_3d_peak_hz: summed_spectrum_peak(track, &options),
-            coherence: Vec::new(),
-            report,
-        });
-    }
-    // Coherence of every pair, on the displacements each point's figures use.
-    for i in 0..outcomes.len() {
-        for j in 0..outcomes.len() {
-            if i == j {
-                continue;
-            }
-            let (a, b) = (&outcomes[i], &outcomes[j]);
-            // Segments of 2 s, or shorter for a short record so that it still gives the four
-            // segments a coherence needs (0.8 s for a 2 s record: 1.25 Hz resolution).
-            let c = common_grid(&a.times_s, &a.displacement_mm, &b.displacement_mm).and_then(
-                |(x, y, rate_hz)| {
-                    let segment = (2.0 * rate_hz).min(0.4 * x.len() as f64).round() as usize;
-                    coherence(&x, &y, rate_hz, segment)
-                },
-            );
-            let peak = a.report.as_ref().ok().and_then(|r| r.peak_frequency_hz);
-            let entry = (
-                b.name.clone(),
-                c.as_ref().zip(peak).and_then(|(c, f)| c.at(f)),
-                c.as_ref().and_then(|c| c.band_mean(COHERENCE_BAND_HZ)),
-            );
-            outcomes[i].coherence.push(entry);
-        }
-    }
-    Ok(outcomes)
-}
-
 pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
     let session = Session::open(&args.session)?;
     let points = all_pixels(&session, &args.control)?;
@@ -421,7 +244,8 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
         .collect();
     let outcomes = analyze_tracks(
         frames_averaged(&session.sequence()?, &params),
-        &tracked,
+        &tracked.tracks,
+        &tracked.axis,
         &names,
         &points,
         args.control.axis.axis(),

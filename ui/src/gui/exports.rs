@@ -3,12 +3,13 @@
 //! of the window. Each is a plain function of a path, so it is tested without dialogs; the
 //! buttons ask for the path with rfd.
 
-use crate::tremor_cmd::{report_json, track_csv, TrackColumn};
+use crate::point_analysis::{analyze_tracks, PointOutcome};
+use crate::tremor_cmd::{track_csv, TrackColumn};
 use anyhow::{Context, Result};
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 use tremorscan::pipeline::CloudFrame;
-use tremorscan::tremor::{LiveTracker, TrackSample};
+use tremorscan::tremor::{DisplacementAxis, LiveTracker, TrackSample};
 
 /// What the user asked to export.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -65,11 +66,13 @@ pub fn export_cloud(path: &Path, frame: Option<&CloudFrame>) -> Result<String> {
     Ok(format!("wrote {n} points to {}", path.display()))
 }
 
-fn histories(tracker: &LiveTracker) -> Vec<(String, (f64, f64), Vec<TrackSample>)> {
+/// Every point's history as the analysis takes it ([`tremorscan::tremor::LivePoint::history`]).
+fn histories(tracker: &LiveTracker) -> Vec<(String, Vec<TrackSample>)> {
+    let window_frames = tracker.analysis.window_frames;
     tracker
         .points
         .iter()
-        .map(|p| (p.name.clone(), p.pixel, p.samples.iter().copied().collect()))
+        .map(|p| (p.name.clone(), p.history(window_frames)))
         .collect()
 }
 
@@ -82,7 +85,7 @@ pub fn export_track(path: &Path, tracker: &LiveTracker) -> Result<String> {
     let h = histories(tracker);
     let columns: Vec<TrackColumn<'_>> = h
         .iter()
-        .map(|(name, _, samples)| TrackColumn {
+        .map(|(name, samples)| TrackColumn {
             name: name.clone(),
             samples,
             axis: Vector3::z(),
@@ -97,48 +100,37 @@ pub fn export_track(path: &Path, tracker: &LiveTracker) -> Result<String> {
     ))
 }
 
-/// Writes the tremor report figure to `png` and its figures to the same name with `.json`.
+/// Writes the tremor report figure to `png` and its figures to the same name with `.json`, as
+/// `tremorscan analyze` does (along the optical axis, the default vertical).
 pub fn export_report(png: &Path, tracker: &LiveTracker) -> Result<String> {
     anyhow::ensure!(
         !tracker.points.is_empty(),
         "there are no control points to report on"
     );
-    let axis = Vector3::z();
-    let mut series = Vec::new();
-    let mut objects = Vec::new();
-    for p in &tracker.points {
-        if let Some(why) = p.follow_error() {
-            anyhow::bail!("point {}: {why}", p.name);
-        }
-        let (times, d) = p.displacement_series(&axis);
-        let report = match tremorscan::tremor::analyze(&times, &d, &tracker.analysis) {
-            Ok(r) => {
-                let mut object = report_json(p.pixel, &r, &axis);
-                object["name"] = serde_json::Value::String(p.name.clone());
-                objects.push(object);
-                Ok(r)
-            }
-            // This point's figures are missing; the report says why and keeps the others.
-            Err(e @ tremorscan::tremor::TremorError::TooFewValid { .. }) => {
-                objects.push(serde_json::json!({
-                    "name": p.name,
-                    "pixel": [p.pixel.0, p.pixel.1],
-                    "figures_missing": e.to_string(),
-                }));
-                Err(e.to_string())
-            }
-            Err(e) => return Err(e).with_context(|| format!("point {}", p.name)),
-        };
-        series.push(crate::report_png::PointFigure {
-            label: p.name.clone(),
-            times_s: times,
-            displacement_mm: d,
-            report,
-        });
+    if let Some((p, why)) = tracker
+        .points
+        .iter()
+        .find_map(|p| p.follow_error().map(|why| (p, why)))
+    {
+        anyhow::bail!("point {}: {why}", p.name);
     }
-    crate::report_png::write_report(png, &series)
+    let (names, tracks): (Vec<String>, Vec<Vec<TrackSample>>) =
+        histories(tracker).into_iter().unzip();
+    let pixels: Vec<(f64, f64)> = tracker.points.iter().map(|p| p.pixel).collect();
+    let vertical = Vector3::z();
+    let outcomes = analyze_tracks(
+        tracker.analysis.window_frames,
+        &tracks,
+        &vertical,
+        &names,
+        &pixels,
+        DisplacementAxis::Vertical,
+    )?;
+    let figures: Vec<_> = outcomes.iter().map(PointOutcome::figure).collect();
+    crate::report_png::write_report(png, &figures)
         .with_context(|| format!("writing {}", png.display()))?;
     let json = png.with_extension("json");
+    let objects: Vec<serde_json::Value> = outcomes.iter().map(|o| o.json(&vertical)).collect();
     tremorscan::jsonfile::write_atomic(&json, &objects)?;
     Ok(format!("wrote {} and {}", png.display(), json.display()))
 }

@@ -41,10 +41,11 @@ pub fn snapshot(
         .points
         .iter()
         .map(|p| {
-            let samples: Vec<_> = p.samples.iter().copied().collect();
+            let window_frames = tracker.analysis.window_frames;
+            let samples = p.history(window_frames);
             let (times_s, displacement_mm) =
                 match axis.unit(&Vector3::z(), &samples, &tracker.analysis) {
-                    Some(unit) => p.displacement_series(&unit),
+                    Some(unit) => p.displacement_series(&unit, window_frames),
                     None => (
                         samples.iter().map(|s| s.time_s).collect(),
                         vec![None; samples.len()],

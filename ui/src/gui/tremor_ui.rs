@@ -1,6 +1,8 @@
 //! The tremor panel: per control point, the spectrum of its last five seconds (3–12 Hz band
 //! shaded), the peak frequency, the amplitude, the clinical band label and the MDS-UPDRS
-//! amplitude bin, from [`tremorscan::tremor::analyze`]. The figures are recomputed a few times a
+//! amplitude bin, from [`tremorscan::tremor::analyze`], the field's measures
+//! ([`TremorReport::measures_line`]) and the coherence with every other point, on the series
+//! the displacement plot shows. The figures are recomputed a few times a
 //! second (a Welch spectrum of 600 samples takes well under a millisecond), not every frame,
 //! so the numbers can be read.
 
@@ -8,12 +10,22 @@ use super::plot_ui::Series;
 use egui::Color32;
 use egui_plot::{Line, Plot, PlotPoints, Polygon};
 use std::time::{Duration, Instant};
+use tremorscan::tremor::coherence::{
+    coherence_line, pair_coherences, PairCoherence, Series as CoherenceSeries,
+};
 use tremorscan::tremor::{analyze, AnalysisOptions, TremorReport};
 
 const REFRESH: Duration = Duration::from_millis(300);
 
 /// The analysis of one point, or why there is none yet.
-pub type PointAnalysis = (u64, String, Color32, Result<TremorReport, String>);
+pub struct PointAnalysis {
+    pub id: u64,
+    pub name: String,
+    pub colour: Color32,
+    pub report: Result<TremorReport, String>,
+    /// With each other point.
+    pub coherence: Vec<PairCoherence>,
+}
 
 #[derive(Default)]
 pub struct TremorPanel {
@@ -42,11 +54,33 @@ impl TremorPanel {
             return;
         }
         self.computed = Some(Instant::now());
+        let reports: Vec<Result<TremorReport, String>> = series
+            .iter()
+            .map(|s| analyze(&s.times_s, &s.displacement_mm, options).map_err(|e| e.to_string()))
+            .collect();
+        let named: Vec<(&str, CoherenceSeries<'_>, Option<f64>)> = series
+            .iter()
+            .zip(&reports)
+            .map(|(s, r)| {
+                let series = CoherenceSeries {
+                    times_s: &s.times_s,
+                    displacement_mm: &s.displacement_mm,
+                };
+                let peak = r.as_ref().ok().and_then(|r| r.peak_frequency_hz);
+                (s.name.as_str(), series, peak)
+            })
+            .collect();
+        let coherence = pair_coherences(&named);
         self.results = series
             .iter()
-            .map(|s| {
-                let r = analyze(&s.times_s, &s.displacement_mm, options).map_err(|e| e.to_string());
-                (s.id, s.name.clone(), s.colour, r)
+            .zip(reports)
+            .zip(coherence)
+            .map(|((s, report), coherence)| PointAnalysis {
+                id: s.id,
+                name: s.name.clone(),
+                colour: s.colour,
+                report,
+                coherence,
             })
             .collect();
     }
@@ -58,9 +92,9 @@ impl TremorPanel {
             return;
         }
         egui::ScrollArea::vertical().show(ui, |ui| {
-            for (id, name, colour, result) in &self.results {
-                ui.colored_label(*colour, egui::RichText::new(name).strong());
-                match result {
+            for point in &self.results {
+                ui.colored_label(point.colour, egui::RichText::new(&point.name).strong());
+                match &point.report {
                     // A missing figure says why (too few valid samples) rather than show 0 mm.
                     Err(why) if why.starts_with("figures missing") => {
                         ui.label(why);
@@ -81,7 +115,10 @@ impl TremorPanel {
                             100.0 * r.valid_fraction
                         ));
                         ui.label(r.measures_line());
-                        spectrum_plot_ui(ui, *id, *colour, r);
+                        if let Some(line) = coherence_line(&point.coherence) {
+                            ui.label(line);
+                        }
+                        spectrum_plot_ui(ui, point.id, point.colour, r);
                     }
                 }
                 ui.separator();
