@@ -5,8 +5,8 @@
 //! material point: valid share, 3D RMS and maximum distance, and the peak frequency and
 //! peak-to-peak along each series' principal axis beside the truth's.
 //!
-//! `cargo run --release -p tremorscan --example skin_tracking -- FRAMES POINT [still]`: the
-//! issue's hand (finger flexion 3 mm, sway 4 mm, roll 5°, 4.2 Hz), or a still hand.
+//! `cargo run --release -p tremorscan --example skin_tracking -- FRAMES POINT [still|HZ]`: the
+//! issue's hand (finger flexion 3 mm, sway 4 mm, roll 5°, 4.2 Hz, or at HZ), or a still hand.
 
 use tremorscan::decode::{frames_averaged, DecodeParams};
 use tremorscan::rig::skin_eval::{skin_tracking, TrackAgainstTruth};
@@ -14,10 +14,15 @@ use tremorscan::rig::{RigConfig, Tremor, VirtualRig};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
-    let usage = "usage: skin_tracking FRAMES POINT [still]";
+    let usage = "usage: skin_tracking FRAMES POINT [still|HZ]";
     let frames: u64 = args.next().ok_or(usage)?.parse()?;
     let point: usize = args.next().ok_or(usage)?.parse()?;
-    let still = args.next().is_some_and(|a| a == "still");
+    let last = args.next();
+    let still = last.as_deref() == Some("still");
+    let hz: f64 = match last.as_deref() {
+        Some(text) if !still => text.parse()?,
+        _ => 4.2,
+    };
     let mut config = RigConfig::paper(640, 400)?;
     config.scene.hand = Some(if still {
         Tremor::flexion(4.2, 0.0, 0.0)
@@ -25,7 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Tremor {
             sway_amplitude_mm: 4.0,
             roll_amplitude_deg: 5.0,
-            ..Tremor::flexion(4.2, 3.0, 0.3)
+            ..Tremor::flexion(hz, 3.0, 0.3)
         }
     });
     let sequence = config.default_sequence()?;
