@@ -14,6 +14,7 @@ pub mod live;
 pub mod measures;
 pub mod spectrum;
 pub mod table;
+pub mod texture;
 pub mod track;
 pub mod window_mean;
 
