@@ -43,7 +43,7 @@ impl LivePoint {
 
     /// The history for analysis: as measured, and where the decode gives the window's centre
     /// time (`window_frames` 1) a followed point moved there too ([`undo_window_mean`]; the
-    /// newest four samples stay as measured until their neighbours arrive).
+    /// newest six samples stay as measured until their neighbours arrive).
     pub fn history(&self, window_frames: usize) -> Vec<TrackSample> {
         let mut samples: Vec<TrackSample> = self.samples.iter().copied().collect();
         if window_frames == 1 {

@@ -8,7 +8,7 @@
 use egui::Color32;
 use egui_plot::{Legend, Line, Plot, PlotPoints};
 use nalgebra::Vector3;
-use tremorscan::tremor::{DisplacementAxis, LiveTracker};
+use tremorscan::tremor::{displacements, DisplacementAxis, LiveTracker};
 
 /// The axes the plot offers, with their labels.
 const AXES: [(DisplacementAxis, &str); 5] = [
@@ -41,16 +41,12 @@ pub fn snapshot(
         .points
         .iter()
         .map(|p| {
-            let window_frames = tracker.analysis.window_frames;
-            let samples = p.history(window_frames);
-            let (times_s, displacement_mm) =
-                match axis.unit(&Vector3::z(), &samples, &tracker.analysis) {
-                    Some(unit) => p.displacement_series(&unit, window_frames),
-                    None => (
-                        samples.iter().map(|s| s.time_s).collect(),
-                        vec![None; samples.len()],
-                    ),
-                };
+            let samples = p.history(tracker.analysis.window_frames);
+            let times_s = samples.iter().map(|s| s.time_s).collect();
+            let displacement_mm = match axis.unit(&Vector3::z(), &samples, &tracker.analysis) {
+                Some(unit) => displacements(&samples, &unit),
+                None => vec![None; samples.len()],
+            };
             Series {
                 id: p.id,
                 name: p.name.clone(),
