@@ -41,8 +41,7 @@
 //! function of the pixel offset and evaluated at the exact location.
 
 pub use super::texture::TextureImage;
-use super::track::{median, SurfaceSlope, TrackOptions};
-use crate::triangulate::PointCloud;
+pub use super::track::locate_subpixel;
 use nalgebra::{SMatrix, SVector};
 
 /// Settings of the skin follower.
@@ -358,85 +357,11 @@ impl SkinFollower {
     }
 }
 
-/// The 3D position (camera frame, mm) of the surface at sub-pixel `pixel`, with its slope
-/// there: the valid points of the `(2·radius + 1)²` neighbourhood, outliers removed as in
-/// [`super::locate`], fitted by least squares as `p(u, v) = p₀ + p_u·Δu + p_v·Δv` and evaluated
-/// at `pixel`: `(p₀, [p_u, p_v])` (the slope is zero where too few inliers leave the
-/// neighbourhood's median as the position). `None` with fewer than `min_valid_fraction` of the
-/// neighbourhood valid.
-pub fn locate_subpixel(
-    cloud: &PointCloud,
-    pixel: (f64, f64),
-    options: &TrackOptions,
-) -> Option<([f64; 3], SurfaceSlope)> {
-    let (cu, cv) = (pixel.0.round(), pixel.1.round());
-    if cu < 0.0 || cv < 0.0 || cu >= cloud.width as f64 || cv >= cloud.height as f64 {
-        return None;
-    }
-    let r = options.radius_px as i64;
-    let mut points: Vec<([f64; 3], f64, f64)> = Vec::with_capacity(((2 * r + 1).pow(2)) as usize);
-    let mut slots = 0usize;
-    for y in cv as i64 - r..=cv as i64 + r {
-        for x in cu as i64 - r..=cu as i64 + r {
-            if x < 0 || y < 0 || x >= cloud.width as i64 || y >= cloud.height as i64 {
-                continue;
-            }
-            slots += 1;
-            let p = cloud.point_in_camera_mm[y as usize * cloud.width + x as usize];
-            if p[2].is_finite() {
-                points.push((
-                    [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])],
-                    x as f64 - pixel.0,
-                    y as f64 - pixel.1,
-                ));
-            }
-        }
-    }
-    if slots == 0 || (points.len() as f64) < options.min_valid_fraction * slots as f64 {
-        return None;
-    }
-    let mut centre = [0.0; 3];
-    let mut scale = [0.0; 3];
-    for axis in 0..3 {
-        let mut v: Vec<f64> = points.iter().map(|p| p.0[axis]).collect();
-        centre[axis] = median(&mut v);
-        let mut dev: Vec<f64> = v.iter().map(|x| (x - centre[axis]).abs()).collect();
-        scale[axis] = (1.4826 * median(&mut dev)).max(0.05);
-    }
-    let fit = |subset: &[&([f64; 3], f64, f64)]| -> Option<([f64; 3], SurfaceSlope)> {
-        let mut normal = nalgebra::Matrix3::<f64>::zeros();
-        let mut rhs = [nalgebra::Vector3::<f64>::zeros(); 3];
-        for (p, du, dv) in subset {
-            let b = nalgebra::Vector3::new(1.0, *du, *dv);
-            normal += b * b.transpose();
-            for axis in 0..3 {
-                rhs[axis] += b * p[axis];
-            }
-        }
-        let lu = normal.lu();
-        let (mut out, mut slope) = ([0.0; 3], [[0.0; 3]; 2]);
-        for axis in 0..3 {
-            let c = lu.solve(&rhs[axis])?;
-            out[axis] = c[0];
-            slope[0][axis] = c[1];
-            slope[1][axis] = c[2];
-        }
-        Some((out, slope))
-    };
-    let inliers: Vec<&([f64; 3], f64, f64)> = points
-        .iter()
-        .filter(|p| (0..3).all(|a| (p.0[a] - centre[a]).abs() <= options.outlier_k * scale[a]))
-        .collect();
-    let flat = (centre, [[0.0; 3]; 2]);
-    if inliers.len() < 3 {
-        return Some(flat);
-    }
-    fit(&inliers).or(Some(flat))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::tremor::track::TrackOptions;
+    use crate::triangulate::PointCloud;
 
     /// A smooth texture, luminance 0–765 around 300.
     fn texture(u: f64, v: f64) -> f64 {
