@@ -157,13 +157,16 @@ fn streaming_numbers_times_and_cycles_patterns_and_a_bayer_stream_is_demosaiced(
     let mut stamps = Vec::new();
     let mut host_s = Vec::new();
     let started = Instant::now();
-    // Counted after the first whole frame: the frame the camera is sending when the stream
-    // starts can arrive without its first packets (seen here as block 65401, the fake camera's
-    // first, in 4 of about 110 runs on a 2-core machine), and is rightly counted as incomplete.
-    let mut lost_at_start = None;
+    // Incomplete buffers, counted after each grab. Two frames can rightly arrive without
+    // some of their packets, both near the start: the one the camera is sending when the stream
+    // starts (seen as block 65401, the fake camera's first, in 4 of about 110 runs on a 2-core
+    // machine), and the one in flight when the first grab gives a buffer back to the pool the
+    // busy check let fill (popped after the 16 queued ones; seen once in CI as one incomplete
+    // buffer counted after the first grab).
+    let mut incomplete_after = Vec::new();
     for _ in 0..50 {
         let k = grab_ok(&mut camera, &mut frame);
-        lost_at_start.get_or_insert(camera.incomplete_buffers());
+        incomplete_after.push(camera.incomplete_buffers());
         assert_eq!(frame.pattern_index, ((k + 1) % 3) as usize);
         if let Some(&(k0, t0)) = stamps.last() {
             assert!(k > k0, "frame numbers go forward");
@@ -194,13 +197,18 @@ fn streaming_numbers_times_and_cycles_patterns_and_a_bayer_stream_is_demosaiced(
     let (first, last) = (stamps[0], stamps[stamps.len() - 1]);
     let period = (last.1 - first.1) / (last.0 - first.0) as f64;
     assert!(period > 0.0095, "mean period {period} s");
-    // At most the frame in flight at the start is lost; once streaming, loopback loses nothing.
-    let lost_at_start = lost_at_start.unwrap();
+    // At most those two frames are lost, both among the first 20 grabs (the pool's 16, the
+    // frame that resumed the stream, a margin); once streaming, loopback loses nothing.
+    let lost_at_start = incomplete_after[19];
     assert!(
-        lost_at_start <= 1,
-        "{lost_at_start} frames lost at the start"
+        lost_at_start <= 2,
+        "{lost_at_start} frames lost at the start: {incomplete_after:?}"
     );
-    assert_eq!(camera.incomplete_buffers(), lost_at_start);
+    assert_eq!(
+        camera.incomplete_buffers(),
+        lost_at_start,
+        "frames lost once streaming (incomplete count after each grab: {incomplete_after:?})"
+    );
     // The fake camera draws a pattern, not a flat field.
     let (min, max) = frame
         .data
