@@ -133,34 +133,49 @@ pub(super) fn correct_row(step: &Step<'_>, row: RowPlanes<'_>) {
 }
 
 /// [`correct_row`] for a step that refines (`REFINE`, else from rest) and is the last (`LAST`).
+///
+/// The marked pixels of successive blocks go into one array of [`BLOCK`] entries, and the
+/// full model runs when it is full (and once for the rest at the row's end), so that every run
+/// works on a full array rather than on a block's few moving pixels. Gathering across blocks
+/// changes nothing: the first pass of a block reads and writes only its own pixels, and never
+/// a marked one, so a marked pixel waits unchanged until its run.
 #[inline(always)]
 fn correct_row_as<const REFINE: bool, const LAST: bool>(step: &Step<'_>, mut row: RowPlanes<'_>) {
     let w = row.flags.len();
-    // One per row: the entries a block does not fill hold an earlier block's pixels, worked
-    // on and never copied back.
+    // One per row: the entries past the filled ones hold earlier pixels, worked on and never
+    // copied back.
     let mut gathered = Gathered::default();
+    let mut m = 0;
     let mut start = 0;
     while start < w {
         let end = (start + BLOCK).min(w);
-        let mut block = row.block(start, end);
         let mut marks = [0u8; BLOCK];
         let marks = &mut marks[..end - start];
-        still_pass::<REFINE, LAST>(step, &mut block, marks);
-        let mut m = 0;
+        still_pass::<REFINE, LAST>(step, &mut row.block(start, end), marks);
         for (x, _) in marks.iter().enumerate().filter(|(_, &mark)| mark != 0) {
-            gathered.index[m] = x;
-            copy_pixel(&block, x, &mut gathered.planes(), m);
+            if m == BLOCK {
+                run_gathered(step, &mut gathered, m, &mut row);
+                m = 0;
+            }
+            gathered.index[m] = start + x;
+            copy_pixel(&row, start + x, &mut gathered.planes(), m);
             m += 1;
         }
-        if m > 0 {
-            correct_gathered(step, &mut gathered);
-            let index = gathered.index;
-            let planes = gathered.planes();
-            for (j, &x) in index[..m].iter().enumerate() {
-                copy_pixel(&planes, j, &mut block, x);
-            }
-        }
         start = end;
+    }
+    if m > 0 {
+        run_gathered(step, &mut gathered, m, &mut row);
+    }
+}
+
+/// The second pass over the first `m` gathered pixels, copied back to their places in `row`.
+#[inline(always)]
+fn run_gathered(step: &Step<'_>, gathered: &mut Gathered, m: usize, row: &mut RowPlanes<'_>) {
+    correct_gathered(step, gathered);
+    let index = gathered.index;
+    let planes = gathered.planes();
+    for (j, &x) in index[..m].iter().enumerate() {
+        copy_pixel(&planes, j, row, x);
     }
 }
 

@@ -1,5 +1,5 @@
 //! The second pass of a motion step ([`super::motion_correct`]): the full model on the pixels
-//! of a block that move or were corrected by the step before. They are gathered into arrays on
+//! of a row that move or were corrected by the step before, [`BLOCK`] at a time. They are gathered into arrays on
 //! the stack, the model runs over every entry in one loop with no branches (each choice is
 //! computed both ways and one selected), so that it vectorises, and the marked entries are
 //! copied back.
@@ -16,9 +16,9 @@ use super::motion_basis::{apply, MotionBasis, MAX_TURN_RAD};
 use super::motion_correct::{bit, patch_step, PatchStep, RowPlanes, Step, BLOCK};
 use super::motion_evidence::{chebyshev3, evidence_with, inconsistent};
 
-/// The marked pixels of a block, gathered into arrays, so that the full model runs over them
-/// in one branch-free loop that vectorises; `index` says where each came from. The entries
-/// past the block's marked pixels hold zeros or an earlier block's pixels: the model runs on
+/// Marked pixels of a row, gathered into arrays, so that the full model runs over them in one
+/// branch-free loop that vectorises; `index` says where in the row each came from. The
+/// entries past the filled ones hold zeros or earlier pixels: the model runs on
 /// them too (every value is finite or a harmless NaN) and their results are not copied back.
 pub(super) struct Gathered {
     pub(super) index: [usize; BLOCK],

@@ -70,6 +70,7 @@ pub fn run_bench(args: &BenchArgs) -> Result<()> {
         still_report.fps_sustainable,
         report.decode_ms_median / still_report.decode_ms_median
     )?;
+    write_still_stages(&mut out, &still_report)?;
     if report.fps_sustainable < args.fps {
         let binned_duration = duration.min(Duration::from_secs_f64(BINNED_SECONDS));
         find_binning(&mut out, args, binned_duration)?;
@@ -85,6 +86,18 @@ pub fn run_bench(args: &BenchArgs) -> Result<()> {
         "decode_ms_median={:.3} triangulate_ms_median={:.3} fps_sustainable={:.2}",
         report.decode_ms_median, report.triangulate_ms_median, report.fps_sustainable
     )?;
+    Ok(())
+}
+
+/// The still window's stages beside the motion model's table: where the model's cost lies.
+fn write_still_stages(out: &mut impl Write, still: &BenchReport) -> Result<()> {
+    let stages: Vec<String> = still
+        .stages
+        .iter()
+        .filter(|s| s.median_ms > 0.0)
+        .map(|s| format!("{} {:.2}", s.name, s.median_ms))
+        .collect();
+    writeln!(out, "  its stages, median ms: {}", stages.join(", "))?;
     Ok(())
 }
 
