@@ -71,13 +71,19 @@ fn row(name: &str, track: &TrackAgainstTruth, window_frames: usize) {
                 r.peak_frequency_hz
                     .map_or("none".to_string(), |f| format!("{f:.3}"))
             };
+            // A relative error against a still truth (0 mm) is no figure: say so.
+            let error = if t.amplitude_peak_to_peak_mm > 0.0 {
+                let ratio = m.amplitude_peak_to_peak_mm / t.amplitude_peak_to_peak_mm;
+                format!("{:+.2} %", 100.0 * (ratio - 1.0))
+            } else {
+                "— (truth still)".to_string()
+            };
             format!(
-                "{} ({}) | {:.3} ({:.3}) | {:+.2} %",
+                "{} ({}) | {:.3} ({:.3}) | {error}",
                 hz(&m),
                 hz(&t),
                 m.amplitude_peak_to_peak_mm,
                 t.amplitude_peak_to_peak_mm,
-                100.0 * (m.amplitude_peak_to_peak_mm / t.amplitude_peak_to_peak_mm - 1.0)
             )
         }
         (m, t) => format!("{:?} | {:?} |", m.err(), t.err()),
