@@ -220,5 +220,6 @@ impl DecodeOutput {
 /// recursion) for the smoothing (the rows of a band are processed one after another and reuse
 /// it).
 fn scratch_per_band(width: usize, solver: &WindowSolver) -> usize {
-    (width * 4).max(phasor::scratch_len(solver))
+    // Five rows: the transported horizontal pass's two turn gains and three backward sums.
+    (width * 5).max(phasor::scratch_len(solver))
 }

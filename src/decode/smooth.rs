@@ -16,15 +16,39 @@
 
 pub(crate) use super::connect::compute_connectivity;
 use super::connect::{DOWN, RIGHT};
+use super::smooth_transport::{smooth_transported, Transport};
 use super::{DecodeOutput, SmoothingParams, BAND_ROWS};
 use rayon::prelude::*;
 use std::f32::consts::{PI, TAU};
 
-/// Runs stage 2 in place on `out.unit_re`, `out.unit_im` and `out.support`.
-pub(crate) fn smooth_unit_phasor(out: &mut DecodeOutput, params: &SmoothingParams) {
+/// Runs stage 2 in place on `out.unit_re`, `out.unit_im` and `out.support`. With
+/// [`SmoothingParams::transport`] and a Chebyshev window (`chebyshev_n`, the finest frequency's
+/// index) the recursion is carried along the fine phase ([`super::smooth_transport`]).
+pub(crate) fn smooth_unit_phasor(
+    out: &mut DecodeOutput,
+    params: &SmoothingParams,
+    chebyshev_n: Option<u32>,
+) {
     compute_connectivity(out, params);
-    let mut planes = Planes::of_unit_phasor(out);
-    smooth_planes(&mut planes, params.decay);
+    let Some(n) = chebyshev_n.filter(|&n| n > 0 && params.transport) else {
+        smooth_planes(&mut Planes::of_unit_phasor(out), params.decay);
+        return;
+    };
+    let transport = Transport {
+        phase_rad: &out.phase_rad,
+        unit_per_fine: 1.0 / n as f32,
+    };
+    let mut planes = Planes {
+        planes: [&mut out.unit_re, &mut out.unit_im, &mut out.support],
+        w: out.width,
+        h: out.height,
+        connect: &out.connect,
+        tmp: &mut out.smooth_tmp,
+        band_scratch: &mut out.band_scratch,
+        band_scratch_len: out.band_scratch_len,
+        vertical_state: &mut out.vertical_state,
+    };
+    smooth_transported(&mut planes, params.decay, transport);
 }
 
 /// Three planes to smooth in place, with the scratch and the connectivity the passes use.
@@ -350,7 +374,7 @@ mod tests {
         out.unit_im.fill(0.8);
         out.support.fill(1.0);
         out.colour.fill(100.0);
-        smooth_unit_phasor(&mut out, &SmoothingParams::default());
+        smooth_unit_phasor(&mut out, &SmoothingParams::default(), None);
         let centre = 15 * w + 20;
         let angle = out.unit_im[centre].atan2(out.unit_re[centre]);
         assert!((angle - 0.8f32.atan2(0.6)).abs() < 1e-5);
@@ -376,7 +400,7 @@ mod tests {
                 }
             }
         }
-        smooth_unit_phasor(&mut out, &SmoothingParams::default());
+        smooth_unit_phasor(&mut out, &SmoothingParams::default(), None);
         let p = 10 * w + w / 2 - 1;
         let q = p + 1;
         assert!((out.unit_im[p].atan2(out.unit_re[p]) - 0.5).abs() < 1e-4);
