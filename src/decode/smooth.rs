@@ -34,19 +34,10 @@ pub(crate) fn smooth_unit_phasor(
         smooth_planes(&mut Planes::of_unit_phasor(out), params.decay);
         return;
     };
+    let (mut planes, phase_rad) = Planes::of_unit_phasor_with_phases(out);
     let transport = Transport {
-        phase_rad: &out.phase_rad,
+        phase_rad,
         unit_per_fine: 1.0 / n as f32,
-    };
-    let mut planes = Planes {
-        planes: [&mut out.unit_re, &mut out.unit_im, &mut out.support],
-        w: out.width,
-        h: out.height,
-        connect: &out.connect,
-        tmp: &mut out.smooth_tmp,
-        band_scratch: &mut out.band_scratch,
-        band_scratch_len: out.band_scratch_len,
-        vertical_state: &mut out.vertical_state,
     };
     smooth_transported(&mut planes, params.decay, transport);
 }
@@ -65,9 +56,10 @@ pub(crate) struct Planes<'a> {
 }
 
 impl<'a> Planes<'a> {
-    /// The unit phasor and the support.
-    pub(crate) fn of_unit_phasor(out: &'a mut DecodeOutput) -> Self {
-        Self {
+    /// The unit phasor and the support, beside the (row-planar) phases, which the transported
+    /// recursion reads.
+    pub(crate) fn of_unit_phasor_with_phases(out: &'a mut DecodeOutput) -> (Self, &'a [f32]) {
+        let planes = Self {
             planes: [&mut out.unit_re, &mut out.unit_im, &mut out.support],
             w: out.width,
             h: out.height,
@@ -76,7 +68,13 @@ impl<'a> Planes<'a> {
             band_scratch: &mut out.band_scratch,
             band_scratch_len: out.band_scratch_len,
             vertical_state: &mut out.vertical_state,
-        }
+        };
+        (planes, &out.phase_rad)
+    }
+
+    /// The unit phasor and the support.
+    pub(crate) fn of_unit_phasor(out: &'a mut DecodeOutput) -> Self {
+        Self::of_unit_phasor_with_phases(out).0
     }
 }
 

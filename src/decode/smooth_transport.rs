@@ -333,19 +333,10 @@ mod tests {
     }
 
     fn transport(out: &mut DecodeOutput, decay: f32) {
+        let (mut planes, phase_rad) = Planes::of_unit_phasor_with_phases(out);
         let transport = Transport {
-            phase_rad: &out.phase_rad,
+            phase_rad,
             unit_per_fine: 1.0 / N as f32,
-        };
-        let mut planes = Planes {
-            planes: [&mut out.unit_re, &mut out.unit_im, &mut out.support],
-            w: out.width,
-            h: out.height,
-            connect: &out.connect,
-            tmp: &mut out.smooth_tmp,
-            band_scratch: &mut out.band_scratch,
-            band_scratch_len: out.band_scratch_len,
-            vertical_state: &mut out.vertical_state,
         };
         smooth_transported(&mut planes, decay, transport);
     }
