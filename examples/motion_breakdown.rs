@@ -171,10 +171,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let gross: usize = bins.iter().map(|b| b.gross).sum();
     let sum2: f64 = bins.iter().map(|b| b.sum2_mm2).sum();
     println!(
-        "kept {:.2} %, gross {:.3} % of kept, RMS {:.3} mm",
-        100.0 * valid as f64 / total as f64,
-        100.0 * gross as f64 / valid as f64,
-        (sum2 / (valid - gross) as f64).sqrt()
+        "kept {} %, gross {} % of kept, RMS {} mm",
+        share(valid, total, 2),
+        share(gross, valid, 3),
+        rms(sum2, valid - gross)
     );
     println!(
         "{amplitude_mm} mm{}, {frames} frames, {total} moving px",
@@ -191,19 +191,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             continue;
         }
         let lo = (k as f32 - (BINS / 2) as f32) * BIN_RAD;
-        let pc = |v: usize| 100.0 * v as f64 / b.counted as f64;
         print!(
-            "| {lo:+.1}..{:+.1} | {:.2} % | {:.1} % | {:.2} % | {:.3} |",
+            "| {lo:+.1}..{:+.1} | {} % | {} % | {} % | {} |",
             lo + BIN_RAD,
-            100.0 * b.counted as f64 / total as f64,
-            pc(b.valid),
-            pc(b.gross),
-            (b.sum2_mm2 / (b.valid - b.gross).max(1) as f64).sqrt()
+            share(b.counted, total, 2),
+            share(b.valid, b.counted, 1),
+            share(b.gross, b.counted, 2),
+            rms(b.sum2_mm2, b.valid - b.gross)
         );
         for v in b.flags {
-            print!(" {:.1} |", pc(v));
+            print!(" {} |", share(v, b.counted, 1));
         }
         println!();
     }
     Ok(())
+}
+
+/// `part` as a percentage of `whole` with `digits` decimals, or "–" when `whole` is empty.
+fn share(part: usize, whole: usize, digits: usize) -> String {
+    if whole == 0 {
+        return "–".into();
+    }
+    format!("{:.digits$}", 100.0 * part as f64 / whole as f64)
+}
+
+/// The RMS of `n` squared errors summing to `sum2`, mm, or "–" when there are none.
+fn rms(sum2: f64, n: usize) -> String {
+    if n == 0 {
+        return "–".into();
+    }
+    format!("{:.3}", (sum2 / n as f64).sqrt())
 }
