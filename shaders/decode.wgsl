@@ -3,7 +3,8 @@
 //
 //   solve       per pixel: 9×9 solve, wrapped phases, amplitudes, colour, unit phasor, flags
 //   connect     per pixel: RIGHT / DOWN links of the edge-aware filter
-//   horizontal  per row:   forward + backward recursion of (re, im, support) into tmp
+//   horizontal  per row:   forward + backward recursion of (re, im, support) into tmp, the
+//                          phasor turned along the fine phase at each step when transported
 //   vertical    per column: the same down the columns, back into (re, im, support)
 //   unwrap      per pixel: coarse coordinate, eq. 8 for each frequency, combination, checks
 //   jumps       per pixel: fringe-order jumps between linked neighbours, final flags
@@ -39,8 +40,12 @@ struct Params {
     edge_chromaticity: f32,
     min_support: f32,
     half_period_px: f32,
-    _pad2: f32,
-    _pad3: f32,
+    // 1/n when the unit phasor's sum is carried along the fine phase (slot 0), 0 when summed
+    // plainly (src/decode/smooth_transport.rs).
+    unit_per_fine: f32,
+    // Pixels each recursion segment warms up on beyond its ends: decay^halo is below f32
+    // resolution.
+    halo: u32,
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
@@ -234,43 +239,57 @@ fn gain_of(i: u32, bit: u32) -> f32 {
 }
 
 // The recursions run in segments of SEGMENT pixels, one invocation each (36 000 at 1920×1200
-// instead of one per row or column), each warmed up on HALO pixels beyond its ends: decay⁴⁸ =
-// 0.7⁴⁸ ≈ 4·10⁻⁸, below f32 resolution, so the result is that of one recursion over the whole
-// line (the CPU's vertical blocks rely on the same bound). Every segment reads the pass's input,
-// which the pass does not modify, and writes only its own pixels.
+// instead of one per row or column), each warmed up on P.halo pixels beyond its ends, chosen by
+// the host so that decay^halo is below f32 resolution (52 at 0.7, 114 at 0.85): the result is
+// that of one recursion over the whole line. Every segment reads the pass's input, which the
+// pass does not modify, and writes only its own pixels.
 const SEGMENT: u32 = 64u;
-const HALO: u32 = 48u;
+
+// The running sum `s` carried from pixel `src_px` to its linked neighbour `dst_px`: scaled by the
+// decay, and, when transported, its phasor turned by the unit angle's change between them,
+// wrap(φ_0(dst_px) − φ_0(src_px))/n (the series to θ³, as on the CPU; |θ| < π/n).
+fn carry(s: vec3<f32>, src_px: u32, dst_px: u32, g: f32) -> vec3<f32> {
+    if (P.unit_per_fine == 0.0) {
+        return g * s;
+    }
+    let d = solved[PHASE * P.n + dst_px] - solved[PHASE * P.n + src_px];
+    let theta = (d - TAU * round(d / TAU)) * P.unit_per_fine;
+    let t2 = theta * theta;
+    let c = g * (1.0 - 0.5 * t2);
+    let sn = g * theta * (1.0 - t2 / 6.0);
+    return vec3<f32>(c * s.x - sn * s.y, sn * s.x + c * s.y, g * s.z);
+}
 
 // Forward + backward recursion of (re, im, support) along one segment of pixels
 // `first + k·step`, k in [start, end) of a line of `len`, from plane `src` into plane `dst`.
 fn recurse_segment(first: u32, step: u32, len: u32, start: u32, end: u32, bit: u32, src: u32, dst: u32) {
     let n = P.n;
-    let warm = select(start - HALO, 0u, start < HALO);
+    let warm = select(start - P.halo, 0u, start < P.halo);
     var f = vec3<f32>(0.0);
     for (var k = warm; k < end; k++) {
         let i = first + k * step;
-        var g = 0.0;
-        if (k > warm) {
-            g = gain_of(i - step, bit);
-        }
         let v = vec3<f32>(work[src * n + i], work[(src + 1u) * n + i], work[(src + 2u) * n + i]);
-        f = v + g * f;
+        if (k > warm) {
+            f = v + carry(f, i - step, i, gain_of(i - step, bit));
+        } else {
+            f = v;
+        }
         if (k >= start) {
             work[dst * n + i] = f.x;
             work[(dst + 1u) * n + i] = f.y;
             work[(dst + 2u) * n + i] = f.z;
         }
     }
-    let stop = min(end + HALO, len);
+    let stop = min(end + P.halo, len);
     var b = vec3<f32>(0.0);
     for (var k = stop; k > start; k--) {
         let i = first + (k - 1u) * step;
-        var g = 0.0;
-        if (k < stop) {
-            g = gain_of(i, bit);
-        }
         let v = vec3<f32>(work[src * n + i], work[(src + 1u) * n + i], work[(src + 2u) * n + i]);
-        b = v + g * b;
+        if (k < stop) {
+            b = v + carry(b, i + step, i, gain_of(i, bit));
+        } else {
+            b = v;
+        }
         if (k <= end) {
             work[dst * n + i] += b.x - v.x;
             work[(dst + 1u) * n + i] += b.y - v.y;

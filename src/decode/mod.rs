@@ -196,7 +196,7 @@ impl Default for MotionParams {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SmoothingParams {
     /// Per-pixel decay of the recursive filter; 0.7 gives about 11 effective samples per axis
-    /// (`(1 + d)³ / ((1 − d)(1 + d²))`).
+    /// (`(1 + d)³ / ((1 − d)(1 + d²))`), 0.8 about 18.
     pub decay: f32,
     /// Neighbours whose wrapped phase of any frequency differs by more than this are not connected.
     pub edge_phase_rad: f32,
@@ -207,9 +207,9 @@ pub struct SmoothingParams {
     pub edge_chromaticity: f32,
     /// Pixels with less total filter weight than this are marked [`invalid::LOW_SUPPORT`].
     pub min_support: f32,
-    /// Carry the unit phasor's sum along the fine phase (CPS windows, CPU only;
+    /// Carry the unit phasor's sum along the fine phase (CPS windows, CPU and GPU;
     /// [`smooth`]'s `smooth_transport`): unbiased by the coordinate's gradient and curvature
-    /// at any decay, so the decay can be raised. Off by default (see `decay`).
+    /// at any decay, so the decay can be raised (see `decay`).
     pub transport: bool,
 }
 
@@ -217,22 +217,20 @@ impl Default for SmoothingParams {
     fn default() -> Self {
         Self {
             // Carried along the fine phase (`transport`) a wider average is unbiased, and under
-            // motion it removes the ripple the velocity's correction leaves on the unit phase:
-            // at 0.85 the motion sweep's moving skin at 10 mm kept 97.5 % with 0.28 % gross
-            // errors and 0.164 mm RMS (plain 0.7: 97.3 %, 0.32 %, 0.160 mm), with 4 mm of sway
-            // 95.3 % and 0.40 % (90.3 %, 0.80 %). Not yet the default: the transported pass
-            // costs about 0.7 ms of a 640×400 window, and at 0.85 pixels of a one-pixel line of
-            // shadow, lit only through the lens's blur by their neighbours, gather a clean
-            // enough coarse estimate to decode (2 on the still hand's table at σ = 2,
-            // `tests/accuracy.rs`); a support threshold scaled with the reach (71 of a full 152)
-            // refuses them, but left no pixel valid in the bench test's 160×100 image
-            // (docs/accuracy.md, Motion).
-            decay: 0.7,
+            // motion it removes the ripple the velocity's correction leaves on the unit phase.
+            // On the motion sweep (10 mm; with 4 mm of sway), plain at 0.7: 97.3 % of the moving
+            // skin kept, 0.32 % gross; 90.3 %, 0.80 %. Transported at 0.8: 97.5 %, 0.29 %;
+            // 93.6 %, 0.47 %. At 0.85: 97.5 %, 0.29 %; 95.3 %, 0.40 %, but behind a soft lens
+            // (σ = 1 px) it keeps 3 times as many made-up points on the outlines as at 0.7
+            // (0.14 % of the valid pixels against 0.05 %; 0.09 % at 0.8): the wider, cleaner
+            // coarse estimate lets the blur's mixed pixels round, which the narrow one refused
+            // by chance (docs/accuracy.md, Motion and Mixed pixels).
+            decay: 0.8,
             edge_phase_rad: 1.0,
             edge_colour_ratio: 0.3,
             edge_chromaticity: 0.03,
             min_support: 15.0,
-            transport: false,
+            transport: true,
         }
     }
 }

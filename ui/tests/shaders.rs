@@ -96,6 +96,8 @@ fn the_decode_shader_matches_its_rust_struct() {
     assert_eq!(offset("gain"), offset_of!(U, gain));
     assert_eq!(offset("x_max"), offset_of!(U, x_max));
     assert_eq!(offset("half_period_px"), offset_of!(U, half_period_px));
+    assert_eq!(offset("unit_per_fine"), offset_of!(U, unit_per_fine));
+    assert_eq!(offset("halo"), offset_of!(U, halo));
     for entry in tremorscan_ui::gpu_decode::STAGES {
         assert!(
             module.entry_points.iter().any(|e| e.name == entry),

@@ -88,13 +88,6 @@ pub(super) fn unsupported(
             params.unwrap
         ));
     }
-    if params.smoothing.transport {
-        return Some(
-            "the GPU decoder sums the unit phasor plainly: the transport along the fine phase \
-             runs on the CPU only"
-                .into(),
-        );
-    }
     if params.motion.model != tremorscan::decode::MotionModel::Off {
         return Some(
             "the GPU decoder has no motion model yet: it decodes the still window only (decode \

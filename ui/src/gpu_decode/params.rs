@@ -32,7 +32,10 @@ pub struct DecodeUniform {
     pub edge_chromaticity: f32,
     pub min_support: f32,
     pub half_period_px: f32,
-    pub pad1: [f32; 2],
+    /// 1/n with [`tremorscan::decode::SmoothingParams::transport`], else 0.
+    pub unit_per_fine: f32,
+    /// The recursions' warm-up beyond a segment's ends, px (see `recursion_halo`).
+    pub halo: u32,
 }
 
 impl DecodeUniform {
@@ -72,7 +75,46 @@ impl DecodeUniform {
             edge_chromaticity: s.edge_chromaticity,
             min_support: s.min_support,
             half_period_px: PI / f[0],
-            pad1: [0.0; 2],
+            unit_per_fine: if s.transport {
+                1.0 / chebyshev_n as f32
+            } else {
+                0.0
+            },
+            halo: recursion_halo(s.decay),
         }
+    }
+}
+
+/// Pixels a recursion of `decay` must warm up on before its sum is that of the whole line to
+/// f32 resolution: the smallest `k` with `decay^k < 10⁻⁸` (52 at 0.7, 114 at 0.85), or a whole
+/// image's length for a decay of 1 or more.
+fn recursion_halo(decay: f32) -> u32 {
+    const WHOLE_LINE: u32 = 1 << 16;
+    if decay.is_nan() || decay <= 0.0 {
+        return 0;
+    }
+    if decay >= 1.0 {
+        return WHOLE_LINE;
+    }
+    let k = (1e-8f64.ln() / f64::from(decay).ln()).ceil();
+    // In 0..=WHOLE_LINE, so the cast is exact.
+    k.min(f64::from(WHOLE_LINE)) as u32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::recursion_halo;
+
+    #[test]
+    fn the_halo_reaches_below_f32_resolution() {
+        assert_eq!(recursion_halo(0.7), 52);
+        assert_eq!(recursion_halo(0.85), 114);
+        for decay in [0.5f32, 0.7, 0.85, 0.95, 0.99] {
+            let k = recursion_halo(decay);
+            assert!(decay.powi(k as i32) < 1e-8, "{decay}");
+            assert!(decay.powi(k as i32 - 1) >= 1e-8, "{decay}");
+        }
+        assert_eq!(recursion_halo(0.0), 0);
+        assert_eq!(recursion_halo(1.0), 1 << 16);
     }
 }
