@@ -220,13 +220,12 @@ impl Default for SmoothingParams {
             // motion it removes the ripple the velocity's correction leaves on the unit phase.
             // On the motion sweep (10 mm; with 4 mm of sway), plain at 0.7: 97.3 % of the moving
             // skin kept, 0.32 % gross; 90.3 %, 0.80 %. Transported at 0.8: 97.5 %, 0.29 %;
-            // 93.6 %, 0.47 %. At 0.85: 97.5 %, 0.29 %; 95.3 %, 0.40 %, but behind a soft lens
-            // (σ = 1 px) it keeps 3 times as many made-up points on the outlines as at 0.7
-            // (0.14 % of the valid pixels against 0.05 %; 0.09 % at 0.8): the wider, cleaner
-            // coarse estimate lets the blur's mixed pixels round, which the narrow one refused
-            // by chance (docs/accuracy.md, Motion). Not yet the default: at 0.8, on the still
-            // hand of `tests/motion_decode.rs`, 3 pixel-windows took an acceleration against 1
-            // with a velocity, which that test refuses and which is not yet explained.
+            // 93.6 %, 0.48 %. Not yet the default: a wider, cleaner coarse estimate also rounds
+            // the pixels a systematic error pulls together, which the narrow, noisy one refused
+            // for the margin by chance. Behind a soft lens (σ = 1 px) the outlines keep 0.09 %
+            // of the valid pixels more than 2 mm off at 0.8 (0.05 % at 0.7; 0.14 % at 0.85),
+            // and a window with a corrupted frame gives 0.56 % of the image a wrong fringe
+            // order (0.28 % at 0.7; `tests/validity.rs` allows 0.5 %) (docs/accuracy.md, Motion).
             decay: 0.7,
             edge_phase_rad: 1.0,
             edge_colour_ratio: 0.3,
