@@ -240,8 +240,8 @@ fn gain_of(i: u32, bit: u32) -> f32 {
 
 // The recursions run in segments of SEGMENT pixels, one invocation each (36 000 at 1920×1200
 // instead of one per row or column), each warmed up on P.halo pixels beyond its ends, chosen by
-// the host so that decay^halo is below f32 resolution (52 at 0.7, 83 at 0.8, 114 at 0.85): the result is
-// that of one recursion over the whole line. Every segment reads the pass's input, which the
+// the host so that decay^halo is below f32 resolution (52 at 0.7, 83 at 0.8, 114 at 0.85): the
+// result is that of one recursion over the whole line. Every segment reads the pass's input, which the
 // pass does not modify, and writes only its own pixels.
 const SEGMENT: u32 = 64u;
 

@@ -168,7 +168,8 @@ fn gpu_decode_matches_the_cpu_decoder_window_by_window() {
 #[test]
 fn the_gpu_carries_the_unit_phasor_along_the_fine_phase_as_the_cpu_does() {
     // The transported sum at a decay whose recursions need a longer warm-up than 0.7's
-    // (114 px): without the turn on the GPU, 852 of 256,000 pixels' validity differed here.
+    // (114 px): without the turn on the GPU, 852 of 256,000 pixels' validity differed in the
+    // first window.
     let mut params = still();
     params.smoothing.transport = true;
     params.smoothing.decay = 0.85;

@@ -86,8 +86,8 @@ impl DecodeUniform {
 }
 
 /// Pixels a recursion of `decay` must warm up on before its sum is that of the whole line to
-/// f32 resolution: the smallest `k` with `decay^k < 10⁻⁸` (52 at 0.7, 83 at 0.8, 114 at 0.85), or a whole
-/// image's length for a decay of 1 or more.
+/// f32 resolution: the smallest `k` with `decay^k < 10⁻⁸` (52 at 0.7, 83 at 0.8, 114 at 0.85),
+/// or a whole image's length for a decay of 1 or more.
 fn recursion_halo(decay: f32) -> u32 {
     const WHOLE_LINE: u32 = 1 << 16;
     if decay.is_nan() || decay <= 0.0 {
@@ -108,6 +108,7 @@ mod tests {
     #[test]
     fn the_halo_reaches_below_f32_resolution() {
         assert_eq!(recursion_halo(0.7), 52);
+        assert_eq!(recursion_halo(0.8), 83);
         assert_eq!(recursion_halo(0.85), 114);
         for decay in [0.5f32, 0.7, 0.85, 0.95, 0.99] {
             let k = recursion_halo(decay);
