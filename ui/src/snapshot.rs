@@ -63,6 +63,7 @@ pub fn run(args: &SnapshotArgs) -> Result<()> {
     let (unwrap, _) = UnwrapMethod::resolve(args.unwrap.requested(), &seq)?;
     let params = DecodeParams {
         unwrap,
+        smoothing: args.unwrap.smoothing(),
         ..DecodeParams::default()
     };
     let mut decoder = SlidingDecoder::new(seq.clone(), rig.config.cross_talk, params)?;

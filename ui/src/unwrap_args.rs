@@ -1,8 +1,9 @@
-//! `--unwrap`, shared by every command that decodes a session or the rig: the unwrap method,
-//! when a user wants another than the one the sequence takes.
+//! `--unwrap` and `--coarse-average`, shared by every command that decodes a session: the unwrap
+//! method, when a user wants another than the one the sequence takes, and how the coarse phase is
+//! averaged.
 
 use anyhow::{Context, Result};
-use tremorscan::decode::{DecodeParams, UnwrapMethod};
+use tremorscan::decode::{DecodeParams, SmoothingParams, UnwrapMethod};
 use tremorscan::session::{Session, SessionDecoding};
 
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -11,6 +12,29 @@ pub struct UnwrapArgs {
     /// for a multi-frequency sequence with the unit frequency).
     #[arg(long, value_enum)]
     pub unwrap: Option<UnwrapArg>,
+    /// How the robust unwrap averages the coarse (unit) phase over each pixel's neighbourhood.
+    /// Default: plain.
+    #[arg(long, value_enum)]
+    pub coarse_average: Option<CoarseAverageArg>,
+}
+
+/// The coarse averages by their command-line names.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CoarseAverageArg {
+    /// The unit phasor summed as it is, decay 0.7 (the default).
+    Plain,
+    /// Carried along the fine phase, decay 0.8: keeps more of a moving, swaying hand, with more
+    /// made-up points behind a soft lens and after a corrupted frame (docs/accuracy.md, Motion).
+    Transported,
+}
+
+impl CoarseAverageArg {
+    pub fn smoothing(self) -> SmoothingParams {
+        match self {
+            CoarseAverageArg::Plain => SmoothingParams::default(),
+            CoarseAverageArg::Transported => SmoothingParams::transported(),
+        }
+    }
 }
 
 /// The unwrap methods by their command-line names.
@@ -40,12 +64,22 @@ impl UnwrapArgs {
         self.unwrap.map(UnwrapArg::method)
     }
 
-    /// How `session` is decoded: `base` with the method and the session's camera noise.
+    /// The smoothing of the requested coarse average (the default's when none was asked for).
+    pub fn smoothing(&self) -> SmoothingParams {
+        self.coarse_average
+            .map_or_else(SmoothingParams::default, CoarseAverageArg::smoothing)
+    }
+
+    /// How `session` is decoded: `base` with the method, the coarse average and the session's
+    /// camera noise.
     pub fn session_decoding(
         &self,
         session: &Session,
-        base: DecodeParams,
+        mut base: DecodeParams,
     ) -> Result<SessionDecoding> {
+        if self.coarse_average.is_some() {
+            base.smoothing = self.smoothing();
+        }
         SessionDecoding::new(session, self.requested(), base)
             .with_context(|| format!("choosing how to decode session {}", session.dir.display()))
     }
