@@ -98,7 +98,8 @@ fn frames_that_break_the_chebyshev_relation_are_marked() {
     // coordinate by half a period: averaging cannot remove a shared bias, and the resulting
     // fringe-order error moves the three maps apart by under 1 px, within the χ² test on dark
     // red. This is the limit of what CPS can check on its own: measured 0.14 % of the image with
-    // the still window, 0.28 % with the motion model, which can take part of such a frame for a
+    // the still window, 0.28 % with the motion model (0.32 % on 2026-12-04, the rig since given
+    // skin texture), which can take part of such a frame for a
     // brightness change (decode/motion.rs, `MAX_BRIGHTNESS_STEP`).
     let wrong_order = (0..n)
         .filter(|&i| clean.coordinate_px[i].is_finite() && broken.coordinate_px[i].is_finite())

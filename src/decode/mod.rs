@@ -225,7 +225,7 @@ impl Default for SmoothingParams {
             // for the margin by chance. Behind a soft lens (σ = 1 px) the outlines keep 0.09 %
             // of the valid pixels more than 2 mm off at 0.8 (0.05 % at 0.7; 0.14 % at 0.85),
             // and a window with a corrupted frame gives 0.56 % of the image a wrong fringe
-            // order (0.28 % at 0.7; `tests/validity.rs` allows 0.5 %) (docs/accuracy.md, Motion).
+            // order (0.32 % at 0.7; `tests/validity.rs` allows 0.5 %) (docs/accuracy.md, Motion).
             decay: 0.7,
             edge_phase_rad: 1.0,
             edge_colour_ratio: 0.3,
