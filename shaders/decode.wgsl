@@ -173,6 +173,22 @@ fn solve(@builtin(global_invocation_id) id: vec3<u32>) {
     let var_over_noise = g0 / a0 + g1 / a1 + g2 / a2;
     let odd = (tr < 0.0) || (sin2 > limit * var_over_noise);
     let min_amp = min(amp[0], min(amp[1], amp[2]));
+    if (motion_on()) {
+        // The motion model (decode_motion.wgsl): the signal's reasons alone, and the evidence
+        // for the patch's motion instead of the unit phasor; the residual is tested after the
+        // correction.
+        var signal = select(0u, LOW_AMPLITUDE, !(min_amp >= P.min_amplitude));
+        signal |= select(0u, SATURATED, saturated);
+        bits[FLAGS * n + i] = signal;
+        let z0 = vec2<f32>(c0, s0);
+        let z1 = vec2<f32>(c1, s1);
+        let z2 = vec2<f32>(c2, s2);
+        let phases = vec3<f32>(solved[PHASE * n + i], solved[(PHASE + 1u) * n + i], solved[(PHASE + 2u) * n + i]);
+        let cheb = cheb_of(z0, z1, z2, phases, vec3<f32>(amp[0], amp[1], amp[2]));
+        let keep = select(0.0, 1.0, signal == 0u);
+        stage1_evidence(i, z0, z1, z2, cheb, vec3<f32>(u[0], u[1], u[2]), keep);
+        return;
+    }
     var reason = 0u;
     if (min_amp < P.min_amplitude) {
         reason |= LOW_AMPLITUDE;
@@ -234,12 +250,12 @@ fn connect(@builtin(global_invocation_id) id: vec3<u32>) {
     bits[LINKS * P.n + i] = link;
 }
 
-fn gain_of(i: u32, bit: u32) -> f32 {
-    return select(0.0, P.decay, (bits[LINKS * P.n + i] & bit) != 0u);
+fn gain_of(i: u32, bit: u32, decay: f32) -> f32 {
+    return select(0.0, decay, (bits[LINKS * P.n + i] & bit) != 0u);
 }
 
 // The recursions run in segments of SEGMENT pixels, one invocation each (36 000 at 1920×1200
-// instead of one per row or column), each warmed up on P.halo pixels beyond its ends, chosen by
+// instead of one per row or column), each warmed up on `halo` pixels beyond its ends, chosen by
 // the host so that decay^halo is below f32 resolution (52 at 0.7, 83 at 0.8, 114 at 0.85): the
 // result is that of one recursion over the whole line. Every segment reads the pass's input, which the
 // pass does not modify, and writes only its own pixels.
@@ -248,8 +264,8 @@ const SEGMENT: u32 = 64u;
 // The running sum `s` carried from pixel `src_px` to its linked neighbour `dst_px`: scaled by the
 // decay, and, when transported, its phasor turned by the unit angle's change between them,
 // wrap(φ_0(dst_px) − φ_0(src_px))/n (the series to θ³, as on the CPU; |θ| < π/n).
-fn carry(s: vec3<f32>, src_px: u32, dst_px: u32, g: f32) -> vec3<f32> {
-    if (P.unit_per_fine == 0.0) {
+fn carry(s: vec3<f32>, src_px: u32, dst_px: u32, g: f32, transported: bool) -> vec3<f32> {
+    if (!transported) {
         return g * s;
     }
     let d = solved[PHASE * P.n + dst_px] - solved[PHASE * P.n + src_px];
@@ -260,17 +276,20 @@ fn carry(s: vec3<f32>, src_px: u32, dst_px: u32, g: f32) -> vec3<f32> {
     return vec3<f32>(c * s.x - sn * s.y, sn * s.x + c * s.y, g * s.z);
 }
 
-// Forward + backward recursion of (re, im, support) along one segment of pixels
-// `first + k·step`, k in [start, end) of a line of `len`, from plane `src` into plane `dst`.
-fn recurse_segment(first: u32, step: u32, len: u32, start: u32, end: u32, bit: u32, src: u32, dst: u32) {
+// Forward + backward recursion of three planes of `work` along one segment of pixels
+// `first + k·step`, k in [start, end) of a line of `len`, from planes `src` into planes `dst`, at
+// `decay`, warmed up on `halo` pixels, the first two planes turned along the fine phase when
+// `transported`.
+fn recurse_segment(first: u32, step: u32, len: u32, start: u32, end: u32, bit: u32, src: u32,
+                   dst: u32, decay: f32, halo: u32, transported: bool) {
     let n = P.n;
-    let warm = select(start - P.halo, 0u, start < P.halo);
+    let warm = select(start - halo, 0u, start < halo);
     var f = vec3<f32>(0.0);
     for (var k = warm; k < end; k++) {
         let i = first + k * step;
         let v = vec3<f32>(work[src * n + i], work[(src + 1u) * n + i], work[(src + 2u) * n + i]);
         if (k > warm) {
-            f = v + carry(f, i - step, i, gain_of(i - step, bit));
+            f = v + carry(f, i - step, i, gain_of(i - step, bit, decay), transported);
         } else {
             f = v;
         }
@@ -280,13 +299,13 @@ fn recurse_segment(first: u32, step: u32, len: u32, start: u32, end: u32, bit: u
             work[(dst + 2u) * n + i] = f.z;
         }
     }
-    let stop = min(end + P.halo, len);
+    let stop = min(end + halo, len);
     var b = vec3<f32>(0.0);
     for (var k = stop; k > start; k--) {
         let i = first + (k - 1u) * step;
         let v = vec3<f32>(work[src * n + i], work[(src + 1u) * n + i], work[(src + 2u) * n + i]);
         if (k < stop) {
-            b = v + carry(b, i + step, i, gain_of(i, bit));
+            b = v + carry(b, i + step, i, gain_of(i, bit, decay), transported);
         } else {
             b = v;
         }
@@ -308,7 +327,8 @@ fn horizontal(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let start = (id.x % segments) * SEGMENT;
     let end = min(start + SEGMENT, P.width);
-    recurse_segment(y * P.width, 1u, P.width, start, end, RIGHT, RE, TMP);
+    recurse_segment(y * P.width, 1u, P.width, start, end, RIGHT, RE, TMP, P.decay, P.halo,
+        P.unit_per_fine != 0.0);
 }
 
 // Down the columns: invocation (column, segment), neighbouring invocations on neighbouring
@@ -322,7 +342,8 @@ fn vertical(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let end = min(start + SEGMENT, P.height);
-    recurse_segment(x, P.width, P.height, start, end, DOWN, TMP, RE);
+    recurse_segment(x, P.width, P.height, start, end, DOWN, TMP, RE, P.decay, P.halo,
+        P.unit_per_fine != 0.0);
 }
 
 // Eq. 8 for one frequency: the unwrapped coordinate and the rounding residual.
@@ -330,6 +351,28 @@ fn unwrap_one(xc: f32, phase: f32, f: f32) -> vec2<f32> {
     let arg = (xc * f - phase) * (1.0 / TAU);
     let k = round(arg);
     return vec2<f32>((TAU * k + phase) / f, abs(arg - k));
+}
+
+// Pixel i's three maps unwrapped around the coarse coordinate `xc` and combined by inverse
+// variance (src/decode/unwrap.rs, CpsMaps): (combined, largest rounding residual, the weighted
+// spread Σ w·(x − x̄)² over the noise variance's scale, 0).
+fn cps_unwrap(xc: f32, i: u32) -> vec4<f32> {
+    let n = P.n;
+    let u0 = unwrap_one(xc, solved[PHASE * n + i], P.freq.x);
+    let u1 = unwrap_one(xc, solved[(PHASE + 1u) * n + i], P.freq.y);
+    let u2 = unwrap_one(xc, solved[(PHASE + 2u) * n + i], P.freq.z);
+    let k = P.freq / P.gain;
+    let k2 = k * k;
+    let a = vec3<f32>(solved[AMP * n + i], solved[(AMP + 1u) * n + i], solved[(AMP + 2u) * n + i]);
+    let wt = k2 * a * a;
+    let total = wt.x + wt.y + wt.z;
+    var combined = u0.x;
+    if (total > 0.0) {
+        combined = (u0.x * wt.x + u1.x * wt.y + u2.x * wt.z) / total;
+    }
+    let d = vec3<f32>(u0.x, u1.x, u2.x) - combined;
+    let spread = wt.x * d.x * d.x + wt.y * d.y * d.y + wt.z * d.z * d.z;
+    return vec4<f32>(combined, max(u0.y, max(u1.y, u2.y)), spread, 0.0);
 }
 
 @compute @workgroup_size(8, 8)
@@ -347,25 +390,16 @@ fn unwrap(@builtin(global_invocation_id) id: vec3<u32>) {
     if (work[SUPPORT * n + i] < P.min_support) {
         reason |= LOW_SUPPORT;
     }
-    let u0 = unwrap_one(xc, solved[PHASE * n + i], P.freq.x);
-    let u1 = unwrap_one(xc, solved[(PHASE + 1u) * n + i], P.freq.y);
-    let u2 = unwrap_one(xc, solved[(PHASE + 2u) * n + i], P.freq.z);
-    let k = P.freq / P.gain;
-    let k2 = k * k;
-    let a = vec3<f32>(solved[AMP * n + i], solved[(AMP + 1u) * n + i], solved[(AMP + 2u) * n + i]);
-    let wt = k2 * a * a;
-    let total = wt.x + wt.y + wt.z;
-    var combined = u0.x;
-    if (total > 0.0) {
-        combined = (u0.x * wt.x + u1.x * wt.y + u2.x * wt.z) / total;
+    if (motion_on()) {
+        state[COARSE * n + i] = xc;
     }
-    if (max(u0.y, max(u1.y, u2.y)) > P.max_rounding_residual) {
+    let maps = cps_unwrap(xc, i);
+    let combined = maps.x;
+    if (maps.y > P.max_rounding_residual) {
         reason |= UNWRAP_MARGIN;
     }
-    let d = vec3<f32>(u0.x, u1.x, u2.x) - combined;
     let inv_noise2 = 1.0 / (P.camera_noise_gray * P.camera_noise_gray);
-    let chi2 = (wt.x * d.x * d.x + wt.y * d.y * d.y + wt.z * d.z * d.z) * inv_noise2;
-    if (chi2 > P.max_disagreement_chi2) {
+    if (maps.z * inv_noise2 > P.max_disagreement_chi2) {
         reason |= DISAGREEMENT;
     }
     if (!(combined >= -0.5 && combined < P.x_max)) {

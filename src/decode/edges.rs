@@ -245,16 +245,29 @@ fn summed_amplitude(out: &DecodeOutput, summed: &mut [f32]) {
 /// Marks the mixed pixels of `out` (see the module header); a `mixed_limit_px` that is not
 /// positive disables the stage.
 pub fn flag_mixed_pixels(solver: &WindowSolver, params: &DecodeParams, out: &mut DecodeOutput) {
+    let mut scratch = std::mem::take(&mut out.noise_scratch);
+    let measured = motion_noise::residual_noise_gray(solver, out, &mut scratch);
+    out.noise_scratch = scratch;
+    flag_mixed_pixels_with_noise(solver, params, measured, out);
+}
+
+/// [`flag_mixed_pixels`] with the noise level the window's final phases show already measured
+/// (`measured_noise_gray`, as [`motion_noise::residual_noise_gray`] measures it): a backend that
+/// does not hand its phases back (the GPU decode) measures it where they are.
+pub fn flag_mixed_pixels_with_noise(
+    solver: &WindowSolver,
+    params: &DecodeParams,
+    measured_noise_gray: Option<f32>,
+    out: &mut DecodeOutput,
+) {
     let limit_px = params.mixed_limit_px;
     if limit_px.is_nan() || limit_px <= 0.0 {
         return;
     }
     let (w, h) = (out.width, out.height);
     let mut scratch = std::mem::take(&mut out.noise_scratch);
-    let measured = motion_noise::residual_noise_gray(solver, out, &mut scratch);
-    let noise_gray = measured.map_or(params.camera_noise_gray, |m| {
-        m.max(params.camera_noise_gray)
-    });
+    let noise_gray =
+        motion_noise::significance_noise_gray(measured_noise_gray, params.camera_noise_gray);
     let var_px2 = typical_variance(solver, out, noise_gray, &mut scratch);
     out.noise_scratch = scratch;
     let mut amplitude = std::mem::take(&mut out.smooth_tmp);

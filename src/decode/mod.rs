@@ -434,14 +434,14 @@ pub(crate) fn finish_window(
         let mut scratch = std::mem::take(&mut out.noise_scratch);
         let measured = motion_noise::residual_noise_gray(solver, out, &mut scratch);
         out.noise_scratch = scratch;
-        let noise_gray = measured.map_or(params.camera_noise_gray, |m| {
-            m.max(params.camera_noise_gray)
-        });
+        let noise_gray = motion_noise::significance_noise_gray(measured, params.camera_noise_gray);
         // The previous window's patch velocities give the acceleration only when that window
-        // was the one just before (a frame interval earlier, within a quarter of one).
-        let since_s = (out.time_s - out.patch_velocity_time_s) as f32;
-        let interval_s = basis.frame_interval_s;
-        let previous = ((since_s - interval_s).abs() < 0.25 * interval_s).then_some(since_s);
+        // was the one just before.
+        let previous = motion::consecutive_since(
+            out.time_s,
+            out.patch_velocity_time_s,
+            basis.frame_interval_s,
+        );
         let iterations = params.motion.iterations;
         for i in 0..iterations {
             let kind = if i == 0 {

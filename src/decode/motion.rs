@@ -145,6 +145,7 @@ pub(crate) fn motion_step(
         };
         smooth_planes(&mut planes, decay);
     }
+    let constants = StepConstants::new(basis, noise_gray, previous_s);
     let step = Step {
         basis,
         gain2: gain2(solver),
@@ -152,14 +153,12 @@ pub(crate) fn motion_step(
         min_amplitude: params.min_amplitude,
         kind,
         last,
-        inv_noise2: noise_gray.powi(-2),
-        prior_u: (noise_gray / PRIOR_VELOCITY_PX_PER_S).powi(2),
-        prior_k: (noise_gray / PRIOR_BRIGHTNESS_RATE_PER_S).powi(2),
-        inv_since: previous_s.map_or(0.0, |s| 1.0 / s),
-        shift_per_velocity_change: previous_s.map_or(0.0, |s| 0.5 * basis.mean_tau2_s2 / s),
-        max_velocity_change: previous_s.map_or(0.0, |s| {
-            std::f32::consts::TAU * MAX_OSCILLATION_HZ * s * basis.max_velocity
-        }),
+        inv_noise2: constants.inv_noise2,
+        prior_u: constants.prior_u,
+        prior_k: constants.prior_k,
+        inv_since: constants.inv_since,
+        shift_per_velocity_change: constants.shift_per_velocity_change,
+        max_velocity_change: constants.max_velocity_change,
     };
     let w = out.width;
     let n = w * out.height;
@@ -226,6 +225,49 @@ pub(crate) fn motion_step(
                 );
             },
         );
+}
+
+/// The time since the previous window of a stream when it was the one just before (a frame
+/// interval earlier, within a quarter of one), else `None` (NaN times compare false): only
+/// then do its patch velocities give an acceleration, and its coordinates references
+/// ([`super::temporal`]).
+pub fn consecutive_since(time_s: f64, previous_time_s: f64, frame_interval_s: f32) -> Option<f32> {
+    let since_s = (time_s - previous_time_s) as f32;
+    ((since_s - frame_interval_s).abs() < 0.25 * frame_interval_s).then_some(since_s)
+}
+
+/// The constants of a window's Gauss–Newton steps that depend on its noise and on the window
+/// before it; the CPU's steps and the GPU's take the same.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepConstants {
+    /// The priors' information in the units of the evidence (`σ²/sd²`).
+    pub prior_u: f32,
+    pub prior_k: f32,
+    /// `1/σ²` of the noise the significance test uses.
+    pub inv_noise2: f32,
+    /// `1/Δt` to the previous window (0: none, no acceleration).
+    pub inv_since: f32,
+    /// The largest velocity change over that Δt taken as acceleration, px/s.
+    pub max_velocity_change: f32,
+    /// The shift of the window's mean coordinate per unit of velocity change, s.
+    pub shift_per_velocity_change: f32,
+}
+
+impl StepConstants {
+    /// For a window of `basis` whose significance test uses `noise_gray`, `previous_s` after
+    /// the stream's previous window ([`consecutive_since`]).
+    pub fn new(basis: &MotionBasis, noise_gray: f32, previous_s: Option<f32>) -> Self {
+        Self {
+            prior_u: (noise_gray / PRIOR_VELOCITY_PX_PER_S).powi(2),
+            prior_k: (noise_gray / PRIOR_BRIGHTNESS_RATE_PER_S).powi(2),
+            inv_noise2: noise_gray.powi(-2),
+            inv_since: previous_s.map_or(0.0, |s| 1.0 / s),
+            shift_per_velocity_change: previous_s.map_or(0.0, |s| 0.5 * basis.mean_tau2_s2 / s),
+            max_velocity_change: previous_s.map_or(0.0, |s| {
+                std::f32::consts::TAU * MAX_OSCILLATION_HZ * s * basis.max_velocity
+            }),
+        }
+    }
 }
 
 /// Where a step starts from.

@@ -237,6 +237,55 @@ impl Linearised {
 }
 
 impl MotionBasis {
+    /// Words of [`Self::packed`].
+    pub const PACKED_WORDS: usize = 75;
+
+    /// The basis and the model's constants as one array of `f32`, for the GPU decode
+    /// (`shaders/decode_motion.wgsl` names the offsets): `P_k` (3 × 4, row-major), `Q_k`
+    /// (3 × 4), `τ_k` (3), `M'(0)` (4), `N(0)` (4), `v` (2), the offset row `O_k` (3), `d_k`
+    /// (3 × 2), the unmixing row of each slot (3 × 3), the mixing column of each slot (3 × 3),
+    /// the bias (3), the largest `|κ|` and `|u|`, the frame interval, `mean(τ²)`; then
+    /// [`MAX_TURN_RAD`], the smallest determinant, the significance χ² and the smallest
+    /// acceleration shift of [`super::motion`].
+    pub fn packed(&self) -> [f32; Self::PACKED_WORDS] {
+        use super::motion::{MIN_ACCELERATION_SHIFT_PX, MIN_DET, MOTION_SIGNIFICANCE};
+        let mut words = Vec::with_capacity(Self::PACKED_WORDS);
+        words.extend(self.p.iter().flatten());
+        words.extend(self.q.iter().flatten());
+        words.extend(self.tau_s);
+        words.extend(self.dm);
+        words.extend(self.n0);
+        words.extend([self.v.0, self.v.1]);
+        words.extend(self.offset_row);
+        words.extend(self.d.iter().flat_map(|&(x, y)| [x, y]));
+        words.extend(self.unmix_of_slot.iter().flatten());
+        words.extend(self.mix_of_slot.iter().flatten());
+        words.extend(self.bias_gray);
+        words.extend([
+            self.max_brightness_rate,
+            self.max_velocity,
+            self.frame_interval_s,
+            self.mean_tau2_s2,
+            MAX_TURN_RAD,
+            MIN_DET,
+            MOTION_SIGNIFICANCE,
+            MIN_ACCELERATION_SHIFT_PX,
+        ]);
+        let mut packed = [0.0; Self::PACKED_WORDS];
+        packed.copy_from_slice(&words);
+        packed
+    }
+
+    /// The frame interval of the window, s: half its span.
+    pub fn frame_interval_s(&self) -> f32 {
+        self.frame_interval_s
+    }
+
+    /// The largest velocity the model corrects, projector px/s.
+    pub fn max_velocity_px_per_s(&self) -> f32 {
+        self.max_velocity
+    }
+
     /// Row `j` of `A` with its columns in slot order: how each slot's light reaches camera
     /// channel `j`.
     #[inline(always)]

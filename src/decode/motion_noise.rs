@@ -58,12 +58,25 @@ pub fn residual_noise_gray(
             }
         }
     }
-    if scratch.len() < MIN_SAMPLES {
+    noise_from_scaled_residuals(scratch)
+}
+
+/// The noise level, gray levels, that the grid's scaled residuals `e²/v` show (finite values
+/// only, in any order; reordered here), or `None` with fewer than [`MIN_SAMPLES`]. The GPU
+/// decode gathers the same values on the device and finishes here.
+pub fn noise_from_scaled_residuals(scaled: &mut [f32]) -> Option<f32> {
+    if scaled.len() < MIN_SAMPLES {
         return None;
     }
-    let mid = scratch.len() / 2;
-    let (_, median, _) = scratch.select_nth_unstable_by(mid, f32::total_cmp);
+    let mid = scaled.len() / 2;
+    let (_, median, _) = scaled.select_nth_unstable_by(mid, f32::total_cmp);
     Some((*median / CHI2_1_MEDIAN).sqrt())
+}
+
+/// The noise the significance test uses: the level the window shows (`measured`), or the
+/// `configured` one where that is higher or nothing was measured.
+pub fn significance_noise_gray(measured: Option<f32>, configured: f32) -> f32 {
+    measured.map_or(configured, |m| m.max(configured))
 }
 
 #[cfg(test)]

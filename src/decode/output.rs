@@ -101,6 +101,15 @@ pub struct DecodeOutput {
 }
 
 impl DecodeOutput {
+    /// Forgets the stream's previous windows: the next window takes no acceleration and no
+    /// temporal reference from what this output holds. A backend that keeps those on its own
+    /// device (the GPU decode) calls it, so that the CPU taking over after a failure starts
+    /// afresh rather than from planes it did not write.
+    pub fn forget_stream(&mut self) {
+        self.patch_velocity_time_s = f64::NAN;
+        self.recent_time_s = f64::NAN;
+    }
+
     /// Sets the motion model's planes (velocity, brightness change, acceleration) to 0 where
     /// the pixel is invalid, as their contract says. The model writes them before the later
     /// stages (unwrap, order jumps, mixed pixels) refuse a pixel, and a refused pixel's motion

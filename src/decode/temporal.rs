@@ -67,6 +67,7 @@
 //! frame interval earlier, by the time stamp kept with the references); any other window
 //! starts afresh.
 
+use super::motion::consecutive_since;
 use super::unwrap::CpsMaps;
 use super::{invalid, DecodeOutput};
 use rayon::prelude::*;
@@ -85,9 +86,7 @@ pub(crate) fn flag_temporal_jumps(
     max_step_px: f32,
     frame_interval_s: f32,
 ) {
-    let since_s = (out.time_s - out.recent_time_s) as f32;
-    // NaN (no window before) compares false.
-    let consecutive = (since_s - frame_interval_s).abs() < 0.25 * frame_interval_s;
+    let consecutive = consecutive_since(out.time_s, out.recent_time_s, frame_interval_s).is_some();
     out.recent_time_s = out.time_s;
     let w = out.width;
     let limits = Limits {
@@ -127,8 +126,7 @@ pub(crate) fn settle_margin_from_recent(
     max_residual: f32,
     frame_interval_s: f32,
 ) {
-    let since_s = (out.time_s - out.recent_time_s) as f32;
-    if (since_s - frame_interval_s).abs() >= 0.25 * frame_interval_s {
+    if consecutive_since(out.time_s, out.recent_time_s, frame_interval_s).is_none() {
         return;
     }
     let w = out.width;

@@ -14,8 +14,19 @@ fn shaders() -> Vec<PathBuf> {
     files
 }
 
+/// The decode shader's files are one module (`decode.wgsl`, then its motion model's part):
+/// each is validated as the application compiles them, together.
+const DECODE_PARTS: [&str; 2] = ["decode.wgsl", "decode_motion.wgsl"];
+
 fn validate(path: &PathBuf) -> naga::Module {
-    let source = std::fs::read_to_string(path).expect("read shader");
+    let is_decode_part = path
+        .file_name()
+        .is_some_and(|name| DECODE_PARTS.iter().any(|part| name == *part));
+    let source = if is_decode_part {
+        tremorscan_ui::gpu_decode::SHADER_WGSL.to_string()
+    } else {
+        std::fs::read_to_string(path).expect("read shader")
+    };
     let module = naga::front::wgsl::parse_str(&source)
         .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(&source)));
     naga::valid::Validator::new(

@@ -156,10 +156,7 @@ impl GpuBackend {
                 window.params,
             )?),
         };
-        decoder.decode(window, out)?;
-        // The host's last stage, as on the CPU: mixed pixels at depth edges.
-        tremorscan::decode::edges::flag_mixed_pixels(window.solver, window.params, out);
-        Ok(())
+        decoder.decode(window, out)
     }
 }
 

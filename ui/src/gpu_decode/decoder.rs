@@ -7,21 +7,27 @@
 //! One read-back buffer receives eight planes: coordinate, final flags, three amplitudes and
 //! three colours; the host copies them into the row-planar [`DecodeOutput`].
 
+use super::motion::{self, StreamClock, MODEL_WORDS, MOTION_STAGES};
 use super::{
     take_error, DecodeUniform, DeviceErrors, GpuContext, AMP_PLANE, BIT_PLANES, COORD_PLANE,
     FINAL_PLANE, RECURSION_SEGMENT, SHADER_WGSL, SOLVED_PLANES, STAGES, WORK_PLANES,
 };
 use anyhow::{bail, ensure, Context, Result};
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::sync::{mpsc, Arc};
 use std::time::Instant;
 use tremorscan::decode::backend::Window;
-use tremorscan::decode::{DecodeOutput, DecodeParams, UnwrapMethod, WindowSolver};
+use tremorscan::decode::{
+    edges, motion_basis, DecodeOutput, DecodeParams, MotionBasis, MotionModel, UnwrapMethod,
+    WindowSolver,
+};
 
 /// Planes of the read-back buffer: coordinate, final flags, amplitudes (3), colours (3); the
-/// two timestamps (16 bytes) follow them.
+/// timestamps (four: the start and end of up to two compute passes, 32 bytes) follow them.
 const READBACK_PLANES: usize = 8;
-const TIMESTAMP_BYTES: u64 = 16;
+const TIMESTAMPS: u32 = 4;
+const TIMESTAMP_BYTES: u64 = 8 * TIMESTAMPS as u64;
 
 /// The query set of the compute pass's two timestamps and the buffer they resolve into.
 struct Timestamps {
@@ -38,7 +44,7 @@ pub struct GpuDecoder {
     width: usize,
     height: usize,
     frame_bytes: usize,
-    pipelines: Vec<wgpu::ComputePipeline>,
+    pipelines: HashMap<&'static str, wgpu::ComputePipeline>,
     bind_group: wgpu::BindGroup,
     uniform: wgpu::Buffer,
     pinv: wgpu::Buffer,
@@ -47,6 +53,16 @@ pub struct GpuDecoder {
     work: wgpu::Buffer,
     bits: wgpu::Buffer,
     readback: wgpu::Buffer,
+    /// The motion model's constants (`M` in the shader; its planes, `state`, live on in the
+    /// bind group); with the model, the noise grid's read-back (`None` without).
+    model: wgpu::Buffer,
+    noise_readback: Option<wgpu::Buffer>,
+    /// The noise grid's values (`grid` in the shader) and how many there are.
+    grid: wgpu::Buffer,
+    grid_len: usize,
+    noise_scratch: Vec<f32>,
+    /// When the stream's planes on the device were written.
+    clock: StreamClock,
     /// Timestamps at the start and end of the compute pass, where the device has them.
     timestamps: Option<Timestamps>,
     /// One frame padded to whole words, for sizes whose frames are not.
@@ -87,13 +103,6 @@ pub(super) fn unsupported(
             "the GPU decoder implements the robust Chebyshev unwrap, not {:?}",
             params.unwrap
         ));
-    }
-    if params.motion.model != tremorscan::decode::MotionModel::Off {
-        return Some(
-            "the GPU decoder has no motion model yet: it decodes the still window only (decode \
-             on the CPU, or ask for the still window: `--motion off`)"
-                .into(),
-        );
     }
     None
 }
@@ -147,11 +156,34 @@ impl GpuDecoder {
         let frames = buffer("frames", 3 * frame_bytes, U::STORAGE | U::COPY_DST);
         let pinv = buffer("pinv", 81 * 4, U::STORAGE | U::COPY_DST);
         let solved = buffer("solved", SOLVED_PLANES * n * 4, U::STORAGE | U::COPY_SRC);
-        let work = buffer("work", WORK_PLANES * n * 4, U::STORAGE | U::COPY_SRC);
+        // The motion model's planes only where it may run.
+        let with_motion = params.motion.model != MotionModel::Off && params.motion.iterations > 0;
+        let work_planes = if with_motion {
+            motion::WORK_PLANES_WITH_MOTION
+        } else {
+            WORK_PLANES
+        };
+        let work = buffer("work", work_planes * n * 4, U::STORAGE | U::COPY_SRC);
+        let model = buffer("motion model", MODEL_WORDS * 4, U::STORAGE | U::COPY_DST);
+        let state_bytes = if with_motion {
+            motion::STATE_PLANES * n * 4
+        } else {
+            4
+        };
+        let state = buffer("motion state", state_bytes, U::STORAGE | U::COPY_SRC);
+        let grid_len = motion::grid_len(width, height);
+        let grid = buffer("noise grid", grid_len.max(1) * 4, U::STORAGE | U::COPY_SRC);
+        let noise_readback = with_motion.then(|| {
+            buffer(
+                "noise grid read-back",
+                grid_len.max(1) * 4,
+                U::MAP_READ | U::COPY_DST,
+            )
+        });
         let bits = buffer("bits", BIT_PLANES * n * 4, U::STORAGE | U::COPY_SRC);
         let readback = buffer(
             "readback",
-            READBACK_PLANES * n * 4 + TIMESTAMP_BYTES as usize,
+            (READBACK_PLANES * n + grid_len.max(1)) * 4 + TIMESTAMP_BYTES as usize,
             U::MAP_READ | U::COPY_DST,
         );
         let timestamps = device
@@ -161,7 +193,7 @@ impl GpuDecoder {
                 queries: device.create_query_set(&wgpu::QuerySetDescriptor {
                     label: Some("decode pass"),
                     ty: wgpu::QueryType::Timestamp,
-                    count: 2,
+                    count: TIMESTAMPS,
                 }),
                 resolved: buffer(
                     "decode pass timestamps",
@@ -188,6 +220,9 @@ impl GpuDecoder {
                 storage_entry(3, false),
                 storage_entry(4, false),
                 storage_entry(5, false),
+                storage_entry(6, true),
+                storage_entry(7, false),
+                storage_entry(8, false),
             ],
         });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -200,6 +235,9 @@ impl GpuDecoder {
                 (3, &solved),
                 (4, &work),
                 (5, &bits),
+                (6, &model),
+                (7, &state),
+                (8, &grid),
             ]
             .map(|(binding, buffer)| wgpu::BindGroupEntry {
                 binding,
@@ -217,15 +255,17 @@ impl GpuDecoder {
         });
         let pipelines = STAGES
             .iter()
+            .chain(MOTION_STAGES.iter().filter(|_| with_motion))
             .map(|&entry| {
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some(entry),
                     layout: Some(&pipeline_layout),
                     module: &module,
                     entry_point: Some(entry),
                     compilation_options: Default::default(),
                     cache: None,
-                })
+                });
+                (entry, pipeline)
             })
             .collect();
         if let Some(e) = take_error(&ctx.errors) {
@@ -247,6 +287,12 @@ impl GpuDecoder {
             work,
             bits,
             readback,
+            model,
+            noise_readback,
+            noise_scratch: Vec::with_capacity(grid_len),
+            grid,
+            grid_len,
+            clock: StreamClock::default(),
             timestamps,
             staging: vec![0; frame_bytes],
             next_slot: 0,
@@ -260,8 +306,10 @@ impl GpuDecoder {
     }
 
     /// Decodes `window` into `out` (sized for it): coordinate (NaN where invalid), reasons,
-    /// amplitudes, colour and the timing (the whole round trip as `solve_ms`, the compute pass
-    /// by the GPU's clock as `device_ms` where the adapter has timestamps).
+    /// amplitudes, colour and the timing (the whole round trip as `solve_ms`, the compute
+    /// passes by the GPU's clock as `device_ms` where the adapter has timestamps, the host's
+    /// mixed-pixel stage as `unwrap_ms`). That last stage runs here, on the host, as after the
+    /// CPU's stages, with the noise the final planes show (measured on the device's grid).
     pub fn decode(&mut self, window: &Window<'_>, out: &mut DecodeOutput) -> Result<()> {
         let started = Instant::now();
         let (w, h) = (self.width, self.height);
@@ -323,55 +371,138 @@ impl GpuDecoder {
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
         self.queue
             .write_buffer(&self.pinv, 0, bytemuck::cast_slice(&window.solver.pinv));
-        self.queue.submit([self.commands()]);
-        self.wait_for_readback()?;
-        let device_ms = self.copy_out(out)?;
+        let basis = motion_basis(window.solver, window.frames, window.params);
+        let stages = match &basis {
+            Some(basis) => {
+                self.motion_first_pass(basis, window.params, out.time_s)?;
+                motion::steps_then_unwrap(window.params.motion.iterations)
+            }
+            None => {
+                self.clock.still_window();
+                let off = motion::model_off();
+                self.queue
+                    .write_buffer(&self.model, 0, bytemuck::cast_slice(&off));
+                STAGES.to_vec()
+            }
+        };
+        let passes = if basis.is_some() { 2 } else { 1 };
+        self.queue.submit([self.commands(&stages, passes - 1)]);
+        map_and_wait(&self.device, &self.readback)?;
+        let (device_ms, final_noise_gray) = self.copy_out(out, passes as usize)?;
+        // The stream's state is on the device: the CPU, should it take over, starts afresh.
+        out.forget_stream();
         if let Some(e) = take_error(&self.errors) {
             bail!("the GPU reported an error during the decode: {e}");
         }
         self.slots_filled = 3;
+        let read_back = Instant::now();
+        edges::flag_mixed_pixels_with_noise(window.solver, window.params, final_noise_gray, out);
         out.timings = tremorscan::decode::StageTimings {
-            solve_ms: started.elapsed().as_secs_f64() * 1e3,
+            solve_ms: (read_back - started).as_secs_f64() * 1e3,
             motion_ms: 0.0,
             smooth_ms: 0.0,
-            unwrap_ms: 0.0,
+            unwrap_ms: read_back.elapsed().as_secs_f64() * 1e3,
             device_ms,
         };
         Ok(())
     }
 
-    /// The six stages and the copies into the read-back buffer.
-    fn commands(&self) -> wgpu::CommandBuffer {
+    /// The motion window's first submission: stage 1 with the evidence, the links, the noise
+    /// grid, read back and finished on the host; then the window's values with that noise.
+    fn motion_first_pass(
+        &mut self,
+        basis: &MotionBasis,
+        params: &DecodeParams,
+        time_s: f64,
+    ) -> Result<()> {
+        let noise_readback = self
+            .noise_readback
+            .as_ref()
+            .context("the GPU decoder was set up without the motion model")?;
+        let links = self.clock.advance(time_s, basis, params.check_order_jumps);
+        let words = motion::model_words(basis, params, links);
+        self.queue
+            .write_buffer(&self.model, 0, bytemuck::cast_slice(&words));
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("decode, motion: stage 1"),
+            });
+        self.encode_pass(&mut encoder, &["solve", "connect", "noise_grid"], 0);
+        let grid = self.grid_len;
+        encoder.copy_buffer_to_buffer(&self.grid, 0, noise_readback, 0, grid.max(1) as u64 * 4);
+        self.queue.submit([encoder.finish()]);
+        map_and_wait(&self.device, noise_readback)?;
+        let measured = (|| {
+            let view = noise_readback
+                .get_mapped_range(..)
+                .context("could not read the noise grid's read-back")?;
+            let values: &[f32] = bytemuck::try_cast_slice(&view)
+                .map_err(|e| anyhow::anyhow!("the noise grid's read-back is not words: {e:?}"))?;
+            Ok::<_, anyhow::Error>(motion::noise_from_grid(
+                &values[..grid],
+                &mut self.noise_scratch,
+            ))
+        })();
+        noise_readback.unmap();
+        let measured = measured?;
+        let window = motion::window_words(basis, params, links, measured);
+        self.queue.write_buffer(
+            &self.model,
+            (motion::MODEL_WINDOW_OFFSET * 4) as u64,
+            bytemuck::cast_slice(&window),
+        );
+        Ok(())
+    }
+
+    /// One compute pass of `stages`, in order, with timestamps `2·pass` and `2·pass + 1`.
+    fn encode_pass(&self, encoder: &mut wgpu::CommandEncoder, stages: &[&str], pass_index: u32) {
         let (w, h) = (self.width as u32, self.height as u32);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("decode"),
+            timestamp_writes: self
+                .timestamps
+                .as_ref()
+                .map(|t| wgpu::ComputePassTimestampWrites {
+                    query_set: &t.queries,
+                    beginning_of_pass_write_index: Some(2 * pass_index),
+                    end_of_pass_write_index: Some(2 * pass_index + 1),
+                }),
+        });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        // The recursions: one invocation per segment of a row or column (the evidence's: two
+        // sets of planes).
+        let segments = |lines: u32, len: u32| lines * len.div_ceil(RECURSION_SEGMENT);
+        let groups = |invocations: u32| invocations.div_ceil(64);
+        for entry in stages {
+            let Some(pipeline) = self.pipelines.get(entry) else {
+                // The stage lists are constants of this module and the pipelines were made
+                // for all of them.
+                continue;
+            };
+            pass.set_pipeline(pipeline);
+            match *entry {
+                "horizontal" => pass.dispatch_workgroups(groups(segments(h, w)), 1, 1),
+                "vertical" => pass.dispatch_workgroups(groups(segments(w, h)), 1, 1),
+                "step_horizontal" => pass.dispatch_workgroups(groups(2 * segments(h, w)), 1, 1),
+                "step_vertical" => pass.dispatch_workgroups(groups(2 * segments(w, h)), 1, 1),
+                "noise_grid" => {
+                    let grid = motion::grid_len(self.width, self.height) as u32;
+                    pass.dispatch_workgroups(groups(grid).max(1), 1, 1);
+                }
+                _ => pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1),
+            }
+        }
+    }
+
+    /// The stages of the window's (last) pass, and the copies into the read-back buffer.
+    fn commands(&self, stages: &[&str], pass_index: u32) -> wgpu::CommandBuffer {
         let mut encoder = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("decode"),
             });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("decode"),
-                timestamp_writes: self.timestamps.as_ref().map(|t| {
-                    wgpu::ComputePassTimestampWrites {
-                        query_set: &t.queries,
-                        beginning_of_pass_write_index: Some(0),
-                        end_of_pass_write_index: Some(1),
-                    }
-                }),
-            });
-            pass.set_bind_group(0, &self.bind_group, &[]);
-            for (entry, pipeline) in STAGES.iter().zip(&self.pipelines) {
-                pass.set_pipeline(pipeline);
-                // The recursions: one invocation per segment of a row or column.
-                let segments =
-                    |lines: u32, len: u32| (lines * len.div_ceil(RECURSION_SEGMENT)).div_ceil(64);
-                match *entry {
-                    "horizontal" => pass.dispatch_workgroups(segments(h, w), 1, 1),
-                    "vertical" => pass.dispatch_workgroups(segments(w, h), 1, 1),
-                    _ => pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1),
-                }
-            }
-        }
+        self.encode_pass(&mut encoder, stages, pass_index);
         let plane = (self.width * self.height * 4) as u64;
         let copy =
             |encoder: &mut wgpu::CommandEncoder, src, src_plane: usize, dst_plane, planes| {
@@ -386,38 +517,31 @@ impl GpuDecoder {
         copy(&mut encoder, &self.work, COORD_PLANE, 0, 1);
         copy(&mut encoder, &self.bits, FINAL_PLANE, 1, 1);
         copy(&mut encoder, &self.solved, AMP_PLANE, 2, 6);
+        let grid_bytes = self.grid_len.max(1) as u64 * 4;
+        let planes_bytes = READBACK_PLANES as u64 * plane;
+        encoder.copy_buffer_to_buffer(&self.grid, 0, &self.readback, planes_bytes, grid_bytes);
         if let Some(t) = &self.timestamps {
-            encoder.resolve_query_set(&t.queries, 0..2, &t.resolved, 0);
+            encoder.resolve_query_set(&t.queries, 0..2 * (pass_index + 1), &t.resolved, 0);
             encoder.copy_buffer_to_buffer(
                 &t.resolved,
                 0,
                 &self.readback,
-                READBACK_PLANES as u64 * plane,
+                planes_bytes + grid_bytes,
                 TIMESTAMP_BYTES,
             );
         }
         encoder.finish()
     }
 
-    fn wait_for_readback(&self) -> Result<()> {
-        let (sender, receiver) = mpsc::sync_channel(1);
-        self.readback
-            .map_async(wgpu::MapMode::Read, .., move |result| {
-                // The receiver waits below; a send cannot fail while it does.
-                let _ = sender.send(result);
-            });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .context("the GPU did not finish the decode")?;
-        receiver
-            .recv()
-            .context("the GPU read-back was abandoned")?
-            .context("could not map the GPU read-back buffer")
-    }
-
     /// Pixel-planar read-back → the row-planar output; unmaps the buffer whatever happens.
-    /// Returns the compute pass's duration by the GPU's clock, ms, where it has timestamps.
-    fn copy_out(&self, out: &mut DecodeOutput) -> Result<Option<f64>> {
+    /// Returns the `passes` compute passes' duration by the GPU's clock, ms, where it has
+    /// timestamps, and the noise the final planes' grid shows.
+    fn copy_out(
+        &mut self,
+        out: &mut DecodeOutput,
+        passes: usize,
+    ) -> Result<(Option<f64>, Option<f32>)> {
+        let scratch = &mut self.noise_scratch;
         let result = (|| {
             let view = self
                 .readback
@@ -425,18 +549,41 @@ impl GpuDecoder {
                 .context("could not read the GPU read-back buffer")?;
             let words: &[u32] = bytemuck::try_cast_slice(&view)
                 .map_err(|e| anyhow::anyhow!("GPU read-back is not word aligned: {e:?}"))?;
-            let (planes, stamps) = words.split_at(READBACK_PLANES * self.width * self.height);
+            let (planes, rest) = words.split_at(READBACK_PLANES * self.width * self.height);
+            let (grid, stamps) = rest.split_at(self.grid_len.max(1));
             unpack(planes, self.width, out);
-            Ok(self.timestamps.as_ref().and_then(|t| {
+            let grid: &[f32] = bytemuck::cast_slice(&grid[..self.grid_len]);
+            let noise = motion::noise_from_grid(grid, scratch);
+            let device_ms = self.timestamps.as_ref().and_then(|t| {
                 let tick =
                     |i: usize| u64::from(stamps[2 * i]) | (u64::from(stamps[2 * i + 1]) << 32);
-                let ticks = tick(1).checked_sub(tick(0))?;
+                let mut ticks = 0;
+                for p in 0..passes {
+                    ticks += tick(2 * p + 1).checked_sub(tick(2 * p))?;
+                }
                 Some(ticks as f64 * t.period_ns * 1e-6)
-            }))
+            });
+            Ok((device_ms, noise))
         })();
         self.readback.unmap();
         result
     }
+}
+
+/// Maps `buffer` for reading once the GPU has finished what was submitted.
+fn map_and_wait(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<()> {
+    let (sender, receiver) = mpsc::sync_channel(1);
+    buffer.map_async(wgpu::MapMode::Read, .., move |result| {
+        // The receiver waits below; a send cannot fail while it does.
+        let _ = sender.send(result);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .context("the GPU did not finish the decode")?;
+    receiver
+        .recv()
+        .context("the GPU read-back was abandoned")?
+        .context("could not map the GPU read-back buffer")
 }
 
 /// Copies the eight read-back planes (pixel-planar, as words) into `out`, rows in parallel

@@ -11,10 +11,12 @@
 
 mod backend;
 mod decoder;
+mod motion;
 mod params;
 
 pub use backend::{backend_for, start_pipeline, DecoderChoice, GpuBackend};
 pub use decoder::GpuDecoder;
+pub use motion::{MODEL_WINDOW_OFFSET, MOTION_STAGES};
 pub use params::DecodeUniform;
 
 use anyhow::{Context, Result};
@@ -22,17 +24,23 @@ use std::future::Future;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::task::{Poll, Waker};
 
-/// The decode shader, validated by naga in `ui/tests/shaders.rs`.
-pub const SHADER_WGSL: &str = include_str!("../../../shaders/decode.wgsl");
+/// The decode shader: `decode.wgsl` and the motion model's part, `decode_motion.wgsl`, as one
+/// module (validated together by naga in `ui/tests/shaders.rs`).
+pub const SHADER_WGSL: &str = concat!(
+    include_str!("../../../shaders/decode.wgsl"),
+    include_str!("../../../shaders/decode_motion.wgsl")
+);
 
-/// Entry points of the shader, in the order they run.
-pub const STAGES: [&str; 6] = [
+/// Entry points of the still decode, in the order they run (the motion model's:
+/// [`MOTION_STAGES`]).
+pub const STAGES: [&str; 7] = [
     "solve",
     "connect",
     "horizontal",
     "vertical",
     "unwrap",
     "jumps",
+    "noise_grid_final",
 ];
 /// Planes of the `solved` and `work` buffers and words per pixel of `bits` (see the shader).
 const SOLVED_PLANES: usize = 9;

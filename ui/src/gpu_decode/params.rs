@@ -88,7 +88,7 @@ impl DecodeUniform {
 /// Pixels a recursion of `decay` must warm up on before its sum is that of the whole line to
 /// f32 resolution: the smallest `k` with `decay^k < 10⁻⁸` (52 at 0.7, 83 at 0.8, 114 at 0.85),
 /// or a whole image's length for a decay of 1 or more.
-fn recursion_halo(decay: f32) -> u32 {
+pub(super) fn recursion_halo(decay: f32) -> u32 {
     const WHOLE_LINE: u32 = 1 << 16;
     if decay.is_nan() || decay <= 0.0 {
         return 0;
