@@ -1,5 +1,5 @@
-// The motion model of the GPU decode (src/decode/motion*.rs, src/decode/temporal.rs), appended to
-// decode.wgsl as one module: one velocity u and one brightness change κ per connected patch,
+// The motion model of the GPU decode (src/decode/motion*.rs), appended to decode.wgsl as one
+// module (decode_stream.wgsl follows: the noise grids and the links between windows): one velocity u and one brightness change κ per connected patch,
 // shared by the three frequencies, in Gauss–Newton steps from the still solution. Per window,
 // when the model is on (M[M_ON] = 1):
 //
@@ -13,11 +13,9 @@
 //                 step_refine[_last]: the patch's (u, κ), the correction, the next evidence
 //                 or, on the last step, the unit phasor, the reasons and the acceleration
 //   connect, horizontal, vertical, unwrap   as without the model, on the corrected phasors
-//   settle        the rounding margin settled by the pixel's own recent past; the coordinate
-//                 moved from the frames' mean to the window's centre time
+//   settle        (decode_stream.wgsl)
 //   jumps         (decode.wgsl)
-//   temporal      fringe-order jumps in time; the references carried on; the patch velocity
-//                 forgotten where the pixel's signal or neighbourhood failed
+//   temporal      (decode_stream.wgsl)
 //
 // The CPU's NaNs are explicit here: a patch velocity is known or not (bit KNOWN of its plane),
 // a reference has an age (none: the age of too old). The comments of the CPU code say why each
@@ -244,50 +242,6 @@ fn stage1_evidence(i: u32, z0: vec2<f32>, z1: vec2<f32>, z2: vec2<f32>, c: Cheb,
         slope_at_rest(z2, lit.z, P.freq.z),
     );
     write_evidence(i, evidence_with(z, dz, c, keep, vec2<f32>(0.0)), keep);
-}
-
-// The grid of the noise estimate (src/decode/motion_noise.rs): e²/v of each grid pixel whose
-// flags (plane `flag_plane` of `bits`) are 0, −1 elsewhere, in grid order, into `grid`.
-fn grid_residual(index: u32, flag_plane: u32) {
-    let half = GRID_STEP / 2u;
-    if (P.width <= half || P.height <= half) {
-        return;
-    }
-    let gw = (P.width - half + GRID_STEP - 1u) / GRID_STEP;
-    let gh = (P.height - half + GRID_STEP - 1u) / GRID_STEP;
-    if (index >= gw * gh) {
-        return;
-    }
-    let n = P.n;
-    let x = half + (index % gw) * GRID_STEP;
-    let y = half + (index / gw) * GRID_STEP;
-    let i = y * P.width + x;
-    var scaled = -1.0;
-    if (bits[flag_plane * n + i] == 0u) {
-        let z0 = phasor_of(solved[PHASE * n + i], solved[AMP * n + i]);
-        let z1 = phasor_of(solved[(PHASE + 1u) * n + i], solved[(AMP + 1u) * n + i]);
-        let z2 = phasor_of(solved[(PHASE + 2u) * n + i], solved[(AMP + 2u) * n + i]);
-        let c = cheb3(z0, z1, z2);
-        let e = atan2_poly(c.t.y, c.t.x);
-        let s = e * e / c.var_over_noise;
-        if (finite(s)) {
-            scaled = s;
-        }
-    }
-    grid[index] = scaled;
-}
-
-// Stage 1's noise, for the motion model's significance test.
-@compute @workgroup_size(64)
-fn noise_grid(@builtin(global_invocation_id) id: vec3<u32>) {
-    grid_residual(id.x, FLAGS);
-}
-
-// The final planes' noise, for the host's mixed-pixel stage (src/decode/edges.rs), with or
-// without the model.
-@compute @workgroup_size(64)
-fn noise_grid_final(@builtin(global_invocation_id) id: vec3<u32>) {
-    grid_residual(id.x, FINAL);
 }
 
 // The model's response M(g) + κ·N(g) (src/decode/motion_basis.rs).
@@ -610,68 +564,5 @@ fn step_vertical(@builtin(global_invocation_id) id: vec3<u32>) {
         recurse_segment(x, P.width, P.height, start, end, DOWN, TMP, RE, M[M_DECAY], halo, false);
     } else {
         recurse_segment(x, P.width, P.height, start, end, DOWN, EVIDENCE_TMP, UE, M[M_DECAY], halo, false);
-    }
-}
-
-// The rounding margin settled by the pixel's own recent past (src/decode/temporal.rs), then
-// the coordinate moved from the frames' mean to the window's centre time.
-@compute @workgroup_size(8, 8)
-fn settle(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (id.x >= P.width || id.y >= P.height) {
-        return;
-    }
-    let n = P.n;
-    let i = id.y * P.width + id.x;
-    let older = min(state[AGE * n + i] + 1.0, TOO_OLD);
-    if (M[M_CHECK_TIME] != 0.0 && M[M_CONSECUTIVE] != 0.0 && bits[FLAGS * n + i] == UNWRAP_MARGIN
-        && older <= MAX_AGE_WINDOWS) {
-        let predicted = state[RECENT * n + i] + known_velocity(i) * M[M_INTERVAL];
-        let spatial = cps_unwrap(state[COARSE * n + i], i);
-        let temporal = cps_unwrap(predicted, i);
-        if (abs(spatial.x - temporal.x) < 0.5 && temporal.y <= P.max_rounding_residual) {
-            bits[FLAGS * n + i] = 0u;
-            work[COORD * n + i] = spatial.x;
-        }
-    }
-    work[COORD * n + i] -= state[ACCELERATION * n + i] * (0.5 * M[M_MEAN_TAU2]);
-}
-
-// The patch's velocity where the model kept it (significant and known), else rest.
-fn known_velocity(i: u32) -> f32 {
-    let b = u32(state[PATCH_BITS * P.n + i]);
-    return select(0.0, state[PATCH_VELOCITY * P.n + i], (b & (MOVING | KNOWN)) == (MOVING | KNOWN));
-}
-
-// Fringe-order jumps in time; the references carried on; the patch velocity forgotten where the
-// pixel's own signal or neighbourhood failed (DecodeOutput::clear_motion_where_invalid).
-@compute @workgroup_size(8, 8)
-fn temporal(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (id.x >= P.width || id.y >= P.height) {
-        return;
-    }
-    let n = P.n;
-    let i = id.y * P.width + id.x;
-    var flags = bits[FINAL * n + i];
-    if (M[M_CHECK_TIME] != 0.0) {
-        let older = select(TOO_OLD, min(state[AGE * n + i] + 1.0, TOO_OLD), M[M_CONSECUTIVE] != 0.0);
-        let c = work[COORD * n + i];
-        let predicted = state[RECENT * n + i] + known_velocity(i) * M[M_INTERVAL];
-        let moved = c - predicted;
-        let period = 2.0 * P.half_period_px;
-        let periods = round(moved * (1.0 / period));
-        let off = abs(moved - periods * period);
-        let valid = flags == 0u;
-        let jumped = valid && (older <= MAX_AGE_WINDOWS) && (periods != 0.0)
-            && (off <= older * M[M_MAX_STEP]);
-        if (jumped) {
-            flags |= ORDER_JUMP;
-        }
-        let keep = valid && !jumped;
-        state[RECENT * n + i] = select(predicted, c, keep);
-        state[AGE * n + i] = select(older, 0.0, keep);
-    }
-    bits[FINAL * n + i] = flags;
-    if ((flags & (LOW_AMPLITUDE | SATURATED | DISAGREEMENT | LOW_SUPPORT)) != 0u) {
-        state[PATCH_BITS * n + i] = f32(u32(state[PATCH_BITS * n + i]) & MOVING);
     }
 }

@@ -117,9 +117,9 @@ pub struct ReplayArgs {
 /// The motion model inside the window (`--motion`).
 #[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MotionChoice {
-    /// One velocity and brightness change per patch, corrected inside the window (CPU only).
+    /// One velocity and brightness change per patch, corrected inside the window.
     Linear,
-    /// The paper's still window (what the GPU decoder does).
+    /// The paper's still window.
     Off,
 }
 

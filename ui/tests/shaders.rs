@@ -14,9 +14,9 @@ fn shaders() -> Vec<PathBuf> {
     files
 }
 
-/// The decode shader's files are one module (`decode.wgsl`, then its motion model's part):
-/// each is validated as the application compiles them, together.
-const DECODE_PARTS: [&str; 2] = ["decode.wgsl", "decode_motion.wgsl"];
+/// The decode shader's files are one module (`decode.wgsl`, then its motion model's and its
+/// stream's parts): each is validated as the application compiles them, together.
+const DECODE_PARTS: [&str; 3] = ["decode.wgsl", "decode_motion.wgsl", "decode_stream.wgsl"];
 
 fn validate(path: &PathBuf) -> naga::Module {
     let is_decode_part = path
@@ -109,22 +109,32 @@ fn the_decode_shader_matches_its_rust_struct() {
     assert_eq!(offset("half_period_px"), offset_of!(U, half_period_px));
     assert_eq!(offset("unit_per_fine"), offset_of!(U, unit_per_fine));
     assert_eq!(offset("halo"), offset_of!(U, halo));
-    for entry in tremorscan_ui::gpu_decode::STAGES {
+    use tremorscan_ui::gpu_decode::{MODEL_WINDOW_OFFSET, MOTION_STAGES, STAGES};
+    for entry in STAGES.iter().chain(&MOTION_STAGES) {
         assert!(
-            module.entry_points.iter().any(|e| e.name == entry),
+            module.entry_points.iter().any(|e| e.name == *entry),
             "entry point {entry}"
         );
     }
+    let constant = |name: &str| {
+        let (_, c) = module
+            .constants
+            .iter()
+            .find(|(_, c)| c.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("{name} in the shader"));
+        match module.global_expressions[c.init] {
+            naga::Expression::Literal(naga::Literal::U32(v)) => v as usize,
+            ref other => panic!("{name} is {other:?}"),
+        }
+    };
     // The host dispatches one invocation per segment of the recursions: the same length.
-    let (_, segment) = module
-        .constants
-        .iter()
-        .find(|(_, c)| c.name.as_deref() == Some("SEGMENT"))
-        .expect("SEGMENT in the shader");
     assert_eq!(
-        module.global_expressions[segment.init],
-        naga::Expression::Literal(naga::Literal::U32(
-            tremorscan_ui::gpu_decode::RECURSION_SEGMENT
-        ))
+        constant("SEGMENT"),
+        tremorscan_ui::gpu_decode::RECURSION_SEGMENT as usize
     );
+    // The model buffer: the library's packed basis, then the window's values from M_ON on.
+    let packed = tremorscan::decode::MotionBasis::PACKED_WORDS;
+    assert_eq!(constant("M_MIN_SHIFT"), packed - 1);
+    assert_eq!(constant("M_ON"), MODEL_WINDOW_OFFSET);
+    assert_eq!(constant("M_CHECK_TIME"), MODEL_WINDOW_OFFSET + 11);
 }

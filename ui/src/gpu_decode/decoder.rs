@@ -4,8 +4,11 @@
 //! window that shares two frames with the previous one uploads one frame (6.9 MB at 1920×1200)
 //! and tells the shader where its oldest frame is (`first_slot`). The solver's pseudo-inverse
 //! and the uniform are rewritten for every window (the window order turns with the patterns).
-//! One read-back buffer receives eight planes: coordinate, final flags, three amplitudes and
-//! three colours; the host copies them into the row-planar [`DecodeOutput`].
+//! One read-back buffer receives eight planes (coordinate, final flags, three amplitudes and
+//! three colours), the final noise grid and the timestamps; the host copies the planes into the
+//! row-planar [`DecodeOutput`] and runs the mixed-pixel stage with the grid's noise. With the
+//! motion model ([`super::motion`]) a window is two submissions: stage 1 and its noise grid,
+//! whose median the host takes, then the steps and the rest.
 
 use super::motion::{self, StreamClock, MODEL_WORDS, MOTION_STAGES};
 use super::{

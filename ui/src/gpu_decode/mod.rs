@@ -2,10 +2,13 @@
 //!
 //! [`GpuContext`] opens the best adapter wgpu finds (a real GPU, or Mesa's lavapipe on a machine
 //! without one). [`GpuDecoder`] holds the pipelines and every buffer for one image size; it keeps
-//! the last three frames on the GPU (a new window uploads only its new frame), runs the six
-//! stages of the shader in one compute pass (wgpu orders the dispatches by their buffer use) and
-//! reads back the projector coordinate, the invalid-reason flags, the amplitudes and the colour
-//! into a [`tremorscan::decode::DecodeOutput`], in the CPU decoder's conventions. [`GpuBackend`]
+//! the last three frames on the GPU (a new window uploads only its new frame), runs the stages
+//! of the shader in a compute pass (wgpu orders the dispatches by their buffer use; with the
+//! motion model, two submissions: the window's noise, measured on the device, is read back and
+//! finished on the host between them) and reads back the projector coordinate, the
+//! invalid-reason flags, the amplitudes and the colour into a
+//! [`tremorscan::decode::DecodeOutput`], in the CPU decoder's conventions, then runs the host's
+//! mixed-pixel stage as the CPU does. [`GpuBackend`]
 //! puts it behind the library's `DecodeBackend`, so the pipeline runs on it; it falls back to
 //! the CPU if the GPU fails. The results match the CPU path (tested on lavapipe).
 
@@ -24,11 +27,13 @@ use std::future::Future;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::task::{Poll, Waker};
 
-/// The decode shader: `decode.wgsl` and the motion model's part, `decode_motion.wgsl`, as one
-/// module (validated together by naga in `ui/tests/shaders.rs`).
+/// The decode shader: `decode.wgsl`, the motion model's part (`decode_motion.wgsl`) and the
+/// links between windows (`decode_stream.wgsl`), as one module (validated together by naga in
+/// `ui/tests/shaders.rs`).
 pub const SHADER_WGSL: &str = concat!(
     include_str!("../../../shaders/decode.wgsl"),
-    include_str!("../../../shaders/decode_motion.wgsl")
+    include_str!("../../../shaders/decode_motion.wgsl"),
+    include_str!("../../../shaders/decode_stream.wgsl")
 );
 
 /// Entry points of the still decode, in the order they run (the motion model's:
