@@ -18,10 +18,22 @@ pub struct UnwrapArgs {
     pub coarse_average: Option<CoarseAverageArg>,
 }
 
-/// The coarse averages by their command-line names.
-#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+/// The coarse averages by their command-line names (and as the GUI's settings store them).
+#[derive(
+    clap::ValueEnum,
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
 pub enum CoarseAverageArg {
     /// The unit phasor summed as it is, decay 0.7 (the default).
+    #[default]
     Plain,
     /// Carried along the fine phase, decay 0.8: keeps more of a moving, swaying hand, with more
     /// made-up points behind a soft lens and after a corrupted frame (docs/accuracy.md, Motion).

@@ -348,10 +348,20 @@ fn settings_apply_a_new_pattern_and_a_point_can_be_dragged() {
     h.run_steps(1);
     h.get_by_label("CPU").click();
     h.run_steps(1);
+    h.get_by_label("transported").click();
+    h.run_steps(1);
     h.get_by_label("Apply").click();
     h.run_steps(2);
     assert!(!h.state().settings.code_columns);
     assert_eq!(h.state().settings.decoder, DecoderChoice::Cpu);
+    // The coarse average chosen reaches the decode: the unit phasor carried along the fine
+    // phase, at its wider decay.
+    let params = h.state().settings.decode_params();
+    assert!(params.smoothing.transport);
+    assert_eq!(
+        params.smoothing,
+        tremorscan::decode::SmoothingParams::transported()
+    );
     let decoder = h
         .state()
         .source

@@ -5,9 +5,10 @@
 //! defaults; it is never a reason not to start.
 
 use crate::gpu_decode::DecoderChoice;
+use crate::unwrap_args::CoarseAverageArg;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-use tremorscan::decode::UnwrapMethod;
+use tremorscan::decode::{DecodeParams, UnwrapMethod};
 
 /// Where frames come from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -106,6 +107,8 @@ pub struct Settings {
     /// Projector bit depth per channel.
     pub projector_bits: u32,
     pub unwrap: UnwrapChoice,
+    /// How the robust unwrap averages the coarse phase (`--coarse-average`).
+    pub coarse_average: CoarseAverageArg,
     /// Where the decode runs: a hardware GPU when there is one (`auto`), the CPU, or the GPU.
     pub decoder: DecoderChoice,
     /// Folder new trials are recorded into.
@@ -125,6 +128,18 @@ fn home() -> PathBuf {
     std::env::var_os("HOME").map_or_else(|| PathBuf::from("."), PathBuf::from)
 }
 
+impl Settings {
+    /// How these settings decode: the unwrap method and the coarse average chosen, the rest as
+    /// the library's defaults (a replay then follows its session, `session::decoding`).
+    pub fn decode_params(&self) -> DecodeParams {
+        DecodeParams {
+            unwrap: self.unwrap.method(),
+            smoothing: self.coarse_average.smoothing(),
+            ..DecodeParams::default()
+        }
+    }
+}
+
 impl Default for Settings {
     fn default() -> Self {
         Self {
@@ -138,6 +153,7 @@ impl Default for Settings {
             code_columns: true,
             projector_bits: 6,
             unwrap: UnwrapChoice::Robust,
+            coarse_average: CoarseAverageArg::Plain,
             decoder: DecoderChoice::Auto,
             sessions_dir: home().join("tremorscan-sessions"),
             trial_seconds: 10.0,

@@ -5,6 +5,7 @@
 use super::app::TremorApp;
 use super::settings::{DeviceChoice, ProjectorKind, UnwrapChoice};
 use crate::gpu_decode::DecoderChoice;
+use crate::unwrap_args::CoarseAverageArg;
 
 /// The device radio buttons, and the camera's own settings when it is chosen.
 fn device_choice_ui(ui: &mut egui::Ui, device: &mut DeviceChoice, replay_path: &str) {
@@ -204,6 +205,23 @@ pub fn settings_window_ui(ctx: &egui::Context, app: &mut TremorApp) {
                             "robust (neighbourhood)",
                         );
                         ui.radio_value(&mut d.unwrap, UnwrapChoice::PerPixel, "per pixel (paper)");
+                    });
+                    ui.end_row();
+                    ui.label("Coarse average").on_hover_text(
+                        "how the robust unwrap averages the coarse phase over a neighbourhood",
+                    );
+                    ui.horizontal(|ui| {
+                        ui.radio_value(&mut d.coarse_average, CoarseAverageArg::Plain, "plain")
+                            .on_hover_text("the default: the unit phasor summed as it is");
+                        ui.radio_value(
+                            &mut d.coarse_average,
+                            CoarseAverageArg::Transported,
+                            "transported",
+                        )
+                        .on_hover_text(
+                            "carried along the fine phase: keeps more of a moving, swaying hand, \
+                             with more made-up points behind a soft lens (docs/accuracy.md)",
+                        );
                     });
                     ui.end_row();
                     ui.label("Decode on");

@@ -108,10 +108,7 @@ impl Source {
             decode_policy: DecodePolicy::Lossless,
             decode_queue: 1,
             consumer_queue: TRACKER_QUEUE,
-            decode_params: tremorscan::decode::DecodeParams {
-                unwrap: settings.unwrap.method(),
-                ..Default::default()
-            },
+            decode_params: settings.decode_params(),
             ..PipelineConfig::default()
         };
         let mut decode_note = None;
