@@ -78,9 +78,21 @@ pub fn run_bench(args: &BenchArgs) -> Result<()> {
     let gpu = if args.no_gpu {
         Err(anyhow::anyhow!("skipped (--no-gpu)"))
     } else {
-        run_gpu(&inputs, duration)
+        run_gpu(&inputs, duration, DecodeParams::default())
     };
     write_gpu_report(&mut out, &gpu)?;
+    if let Ok(g) = &gpu {
+        // The GPU's still window in the same process: what the model costs there.
+        let still_gpu = run_gpu(&inputs, duration, still)
+            .context("the GPU benchmark of the still window failed")?;
+        writeln!(
+            out,
+            "GPU, still window (no motion model): decode {:.2} ms median per window; the motion \
+             model costs {:.2}× its decode",
+            still_gpu.decode_ms_median,
+            g.decode_ms_median / still_gpu.decode_ms_median
+        )?;
+    }
     writeln!(
         out,
         "decode_ms_median={:.3} triangulate_ms_median={:.3} fps_sustainable={:.2}",
@@ -143,13 +155,12 @@ fn find_binning(out: &mut impl Write, args: &BenchArgs, duration: Duration) -> R
 }
 
 /// Runs the same per-frame work with the decode on the GPU (wgpu's preferred adapter, software
-/// ones included) and the CPU's decode settings, the motion model with them: upload of the new
+/// ones included) with `params` (the motion model with the default ones): upload of the new
 /// frame, the shader's stages in two submissions (the window's noise is read back between
 /// them), read-back, the mixed-pixel stage on the host; triangulation and the display hand-off
 /// stay on the CPU.
-fn run_gpu(inputs: &BenchInputs, duration: Duration) -> Result<BenchReport> {
+fn run_gpu(inputs: &BenchInputs, duration: Duration, params: DecodeParams) -> Result<BenchReport> {
     let ctx = GpuContext::new()?;
-    let params = DecodeParams::default();
     let backend = GpuBackend::new(ctx, &inputs.rig.sequence, &params)?;
     Ok(run_with(inputs, duration, Box::new(backend), params)?)
 }

@@ -63,6 +63,12 @@ fn bench_prints_stages_and_a_parsable_last_line() {
         stdout.contains("GPU: ") && stdout.contains("decode thread"),
         "{stdout}"
     );
+    // The GPU runs the motion model too, and its cost there is stated against its still window.
+    assert!(
+        stdout.contains("GPU, still window (no motion model)")
+            && stdout.contains("the motion model costs"),
+        "{stdout}"
+    );
     // The GPU's own clock, or a plain statement that the adapter has none.
     assert!(
         stdout.contains("compute by the GPU's clock")
