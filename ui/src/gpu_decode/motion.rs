@@ -205,7 +205,13 @@ mod tests {
         let stages = steps_then_unwrap(2);
         assert_eq!(stages[2], "step_rest");
         assert_eq!(stages[5], "step_refine_last");
-        assert_eq!(stages.last(), Some(&"temporal"));
+        let temporal = stages.iter().position(|s| *s == "temporal");
+        let jumps = stages.iter().position(|s| *s == "jumps");
+        assert!(
+            jumps.is_some() && temporal == jumps.map(|j| j + 1),
+            "{stages:?}"
+        );
+        assert_eq!(stages.last(), Some(&"noise_grid_final"));
         assert_eq!(steps_then_unwrap(1)[2], "step_rest_last");
     }
 }
