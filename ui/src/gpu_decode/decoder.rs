@@ -11,34 +11,22 @@
 //! whose median the host takes, then the steps and the rest.
 
 use super::motion::{self, StreamClock, MODEL_WORDS, MOTION_STAGES};
+use super::readback::{
+    map_and_wait, read_window, Layout, Timestamps, READBACK_PLANES, TIMESTAMPS, TIMESTAMP_BYTES,
+};
 use super::{
     take_error, DecodeUniform, DeviceErrors, GpuContext, AMP_PLANE, BIT_PLANES, COORD_PLANE,
     FINAL_PLANE, RECURSION_SEGMENT, SHADER_WGSL, SOLVED_PLANES, STAGES, WORK_PLANES,
 };
 use anyhow::{bail, ensure, Context, Result};
-use rayon::prelude::*;
 use std::collections::HashMap;
-use std::sync::{mpsc, Arc};
+use std::sync::Arc;
 use std::time::Instant;
 use tremorscan::decode::backend::Window;
 use tremorscan::decode::{
     edges, motion_basis, DecodeOutput, DecodeParams, MotionBasis, MotionModel, UnwrapMethod,
     WindowSolver,
 };
-
-/// Planes of the read-back buffer: coordinate, final flags, amplitudes (3), colours (3); the
-/// timestamps (four: the start and end of up to two compute passes, 32 bytes) follow them.
-const READBACK_PLANES: usize = 8;
-const TIMESTAMPS: u32 = 4;
-const TIMESTAMP_BYTES: u64 = 8 * TIMESTAMPS as u64;
-
-/// The query set of the compute pass's two timestamps and the buffer they resolve into.
-struct Timestamps {
-    queries: wgpu::QuerySet,
-    resolved: wgpu::Buffer,
-    /// Nanoseconds per tick.
-    period_ns: f64,
-}
 
 /// Pipelines and buffers for one image size.
 pub struct GpuDecoder {
@@ -552,83 +540,21 @@ impl GpuDecoder {
                 .context("could not read the GPU read-back buffer")?;
             let words: &[u32] = bytemuck::try_cast_slice(&view)
                 .map_err(|e| anyhow::anyhow!("GPU read-back is not word aligned: {e:?}"))?;
-            let (planes, rest) = words.split_at(READBACK_PLANES * self.width * self.height);
-            let (grid, stamps) = rest.split_at(self.grid_len.max(1));
-            unpack(planes, self.width, out);
-            let grid: &[f32] = bytemuck::cast_slice(&grid[..self.grid_len]);
-            let noise = motion::noise_from_grid(grid, scratch);
-            let device_ms = self.timestamps.as_ref().and_then(|t| {
-                let tick =
-                    |i: usize| u64::from(stamps[2 * i]) | (u64::from(stamps[2 * i + 1]) << 32);
-                let mut ticks = 0;
-                for p in 0..passes {
-                    ticks += tick(2 * p + 1).checked_sub(tick(2 * p))?;
-                }
-                Some(ticks as f64 * t.period_ns * 1e-6)
-            });
-            Ok((device_ms, noise))
+            let layout = Layout {
+                width: self.width,
+                height: self.height,
+                grid_len: self.grid_len,
+                passes,
+            };
+            Ok(read_window(
+                words,
+                layout,
+                self.timestamps.as_ref(),
+                scratch,
+                out,
+            ))
         })();
         self.readback.unmap();
         result
     }
-}
-
-/// Maps `buffer` for reading once the GPU has finished what was submitted.
-fn map_and_wait(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<()> {
-    let (sender, receiver) = mpsc::sync_channel(1);
-    buffer.map_async(wgpu::MapMode::Read, .., move |result| {
-        // The receiver waits below; a send cannot fail while it does.
-        let _ = sender.send(result);
-    });
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .context("the GPU did not finish the decode")?;
-    receiver
-        .recv()
-        .context("the GPU read-back was abandoned")?
-        .context("could not map the GPU read-back buffer")
-}
-
-/// Copies the eight read-back planes (pixel-planar, as words) into `out`, rows in parallel
-/// (5.6 ms on one core at 1920×1200 on the development machine: the host's largest share of a
-/// GPU window after the transfers).
-fn unpack(words: &[u32], w: usize, out: &mut DecodeOutput) {
-    let n = out.width * out.height;
-    let (coords, rest) = words.split_at(n);
-    let (flags, rest) = rest.split_at(n);
-    let plane = |p: usize| &rest[p * n..(p + 1) * n];
-    let (amp, colour) = (
-        [plane(0), plane(1), plane(2)],
-        [plane(3), plane(4), plane(5)],
-    );
-    out.coordinate_px
-        .par_chunks_mut(w)
-        .zip(out.invalid.par_chunks_mut(w))
-        .zip(out.amplitude.par_chunks_mut(3 * w))
-        .zip(out.colour.par_chunks_mut(3 * w))
-        .enumerate()
-        .for_each(|(y, (((coordinate, reason), amp_row), colour_row))| {
-            let span = y * w..(y + 1) * w;
-            for ((c, r), (&word, &f)) in coordinate
-                .iter_mut()
-                .zip(reason.iter_mut())
-                .zip(coords[span.clone()].iter().zip(&flags[span.clone()]))
-            {
-                *r = f as u16;
-                *c = if f == 0 {
-                    f32::from_bits(word)
-                } else {
-                    f32::NAN
-                };
-            }
-            for f in 0..3 {
-                let dst = f * w..(f + 1) * w;
-                for (d, &s) in amp_row[dst.clone()].iter_mut().zip(&amp[f][span.clone()]) {
-                    *d = f32::from_bits(s);
-                }
-                for (d, &s) in colour_row[dst].iter_mut().zip(&colour[f][span.clone()]) {
-                    *d = f32::from_bits(s);
-                }
-            }
-        });
 }

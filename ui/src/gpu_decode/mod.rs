@@ -16,6 +16,7 @@ mod backend;
 mod decoder;
 mod motion;
 mod params;
+mod readback;
 
 pub use backend::{backend_for, start_pipeline, DecoderChoice, GpuBackend};
 pub use decoder::GpuDecoder;
