@@ -9,8 +9,8 @@ mod common;
 use std::time::Duration;
 use tremorscan::decode::backend::Window;
 use tremorscan::decode::{
-    check_window, DecodeBackend, DecodeOutput, DecodeParams, MotionModel, MotionParams,
-    SlidingDecoder, UnwrapMethod, WindowOutcome, WindowSolver,
+    check_window, motion_noise, DecodeBackend, DecodeOutput, DecodeParams, MotionModel,
+    MotionParams, SlidingDecoder, UnwrapMethod, WindowOutcome, WindowSolver,
 };
 use tremorscan::device::{Pacing, ReplayCamera};
 use tremorscan::frame::Frame;
@@ -223,6 +223,41 @@ fn the_gpu_models_motion_inside_the_window_as_the_cpu_does() {
     config.noise = NoiseModel::gaussian(4.0);
     config.scene.hand.as_mut().unwrap().tip_amplitude_mm = 10.0;
     compare_rig_stream(&rig_with(config), 4, 5, DecodeParams::default());
+}
+
+#[test]
+fn the_gpu_measures_the_final_noise_on_the_whole_grid() {
+    // The host's mixed-pixel stage takes the noise the final planes show, measured on the
+    // device's grid. A tall image's grid has more values than its image has pixels in eight rows:
+    // dispatched as the image (as it once was), the last two thirds of the grid kept the stage-1
+    // values, which a hand moving 10 mm raises (16 pixels' validity then differed, within the
+    // comparison's allowance, so the level is compared here).
+    let mut config = RigConfig::paper(320, 960).unwrap();
+    config.noise = NoiseModel::gaussian(4.0);
+    config.scene.hand.as_mut().unwrap().tip_amplitude_mm = 10.0;
+    let rig = rig_with(config);
+    let params = DecodeParams::default();
+    let window = frames(&rig, 0, 3);
+    let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+    let mut cpu = DecodeOutput::new(320, 960, &solver);
+    tremorscan::decode::decode_window(&solver, &window, &params, solver_n(), &mut cpu).unwrap();
+    // The CPU measured it before marking mixed pixels.
+    for flags in &mut cpu.invalid {
+        *flags &= !tremorscan::decode::invalid::MIXED;
+    }
+    let expected = motion_noise::residual_noise_gray(&solver, &cpu, &mut Vec::new()).unwrap();
+    let ctx = GpuContext::new().unwrap();
+    let mut gpu = GpuDecoder::new(&ctx, 320, 960, &solver, &params).unwrap();
+    let mut out = DecodeOutput::new(320, 960, &solver);
+    check_window(&solver, &window, &params, solver_n(), &mut out).unwrap();
+    gpu.decode(&view(&solver, &refs(&window), &params), &mut out)
+        .unwrap();
+    let measured = gpu.final_noise_gray().unwrap();
+    eprintln!("final noise: CPU {expected}, GPU {measured}");
+    assert!(
+        (measured - expected).abs() <= 1e-4 * expected,
+        "GPU {measured} against CPU {expected}"
+    );
 }
 
 #[test]

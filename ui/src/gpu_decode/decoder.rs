@@ -54,6 +54,8 @@ pub struct GpuDecoder {
     noise_scratch: Vec<f32>,
     /// When the stream's planes on the device were written.
     clock: StreamClock,
+    /// The noise the last window's final planes showed, gray levels (`None`: too few pixels).
+    final_noise_gray: Option<f32>,
     /// Timestamps at the start and end of the compute pass, where the device has them.
     timestamps: Option<Timestamps>,
     /// One frame padded to whole words, for sizes whose frames are not.
@@ -284,11 +286,18 @@ impl GpuDecoder {
             grid,
             grid_len,
             clock: StreamClock::default(),
+            final_noise_gray: None,
             timestamps,
             staging: vec![0; frame_bytes],
             next_slot: 0,
             slots_filled: 0,
         })
+    }
+
+    /// The noise level the last window's final planes showed on the device's grid (what the
+    /// host's mixed-pixel stage took), gray levels; `None` with too few pixels.
+    pub fn final_noise_gray(&self) -> Option<f32> {
+        self.final_noise_gray
     }
 
     /// The image size this decoder was set up for.
@@ -377,7 +386,8 @@ impl GpuDecoder {
             }
         };
         let passes = if basis.is_some() { 2 } else { 1 };
-        self.queue.submit([self.commands(&stages, passes - 1)]);
+        let commands = self.commands(&stages, passes - 1)?;
+        self.queue.submit([commands]);
         map_and_wait(&self.device, &self.readback)?;
         let (device_ms, final_noise_gray) = self.copy_out(out, passes as usize)?;
         // The stream's state is on the device: the CPU, should it take over, starts afresh.
@@ -386,6 +396,7 @@ impl GpuDecoder {
             bail!("the GPU reported an error during the decode: {e}");
         }
         self.slots_filled = 3;
+        self.final_noise_gray = final_noise_gray;
         let read_back = Instant::now();
         edges::flag_mixed_pixels_with_noise(window.solver, window.params, final_noise_gray, out);
         out.timings = tremorscan::decode::StageTimings {
@@ -419,7 +430,7 @@ impl GpuDecoder {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("decode, motion: stage 1"),
             });
-        self.encode_pass(&mut encoder, &["solve", "connect", "noise_grid"], 0);
+        self.encode_pass(&mut encoder, &["solve", "connect", "noise_grid"], 0)?;
         let grid = self.grid_len;
         encoder.copy_buffer_to_buffer(&self.grid, 0, noise_readback, 0, grid.max(1) as u64 * 4);
         self.queue.submit([encoder.finish()]);
@@ -447,7 +458,12 @@ impl GpuDecoder {
     }
 
     /// One compute pass of `stages`, in order, with timestamps `2·pass` and `2·pass + 1`.
-    fn encode_pass(&self, encoder: &mut wgpu::CommandEncoder, stages: &[&str], pass_index: u32) {
+    fn encode_pass(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        stages: &[&str],
+        pass_index: u32,
+    ) -> Result<()> {
         let (w, h) = (self.width as u32, self.height as u32);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("decode"),
@@ -467,9 +483,7 @@ impl GpuDecoder {
         let groups = |invocations: u32| invocations.div_ceil(64);
         for entry in stages {
             let Some(pipeline) = self.pipelines.get(entry) else {
-                // The stage lists are constants of this module and the pipelines were made
-                // for all of them.
-                continue;
+                bail!("the GPU decoder was set up without its stage `{entry}`");
             };
             pass.set_pipeline(pipeline);
             match *entry {
@@ -477,23 +491,24 @@ impl GpuDecoder {
                 "vertical" => pass.dispatch_workgroups(groups(segments(w, h)), 1, 1),
                 "step_horizontal" => pass.dispatch_workgroups(groups(2 * segments(h, w)), 1, 1),
                 "step_vertical" => pass.dispatch_workgroups(groups(2 * segments(w, h)), 1, 1),
-                "noise_grid" => {
-                    let grid = motion::grid_len(self.width, self.height) as u32;
-                    pass.dispatch_workgroups(groups(grid).max(1), 1, 1);
+                // One invocation per grid pixel (the grid's kernels read only `id.x`).
+                "noise_grid" | "noise_grid_final" => {
+                    pass.dispatch_workgroups(groups(self.grid_len as u32).max(1), 1, 1);
                 }
                 _ => pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1),
             }
         }
+        Ok(())
     }
 
     /// The stages of the window's (last) pass, and the copies into the read-back buffer.
-    fn commands(&self, stages: &[&str], pass_index: u32) -> wgpu::CommandBuffer {
+    fn commands(&self, stages: &[&str], pass_index: u32) -> Result<wgpu::CommandBuffer> {
         let mut encoder = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("decode"),
             });
-        self.encode_pass(&mut encoder, stages, pass_index);
+        self.encode_pass(&mut encoder, stages, pass_index)?;
         let plane = (self.width * self.height * 4) as u64;
         let copy =
             |encoder: &mut wgpu::CommandEncoder, src, src_plane: usize, dst_plane, planes| {
@@ -521,7 +536,7 @@ impl GpuDecoder {
                 TIMESTAMP_BYTES,
             );
         }
-        encoder.finish()
+        Ok(encoder.finish())
     }
 
     /// Pixel-planar read-back → the row-planar output; unmaps the buffer whatever happens.
