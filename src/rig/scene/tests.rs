@@ -1,4 +1,5 @@
-//! Tests of the virtual scene: the tremor's amplitude, the rigid sway and roll, the skin texture moving with the skin, what the camera sees, and that culling changes no hit.
+//! Tests of the virtual scene: the tremor's amplitude, the rigid sway and roll, the skin
+//! texture moving with the skin, what the camera sees, and that culling changes no hit.
 
 use super::*;
 
