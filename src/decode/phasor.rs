@@ -330,7 +330,7 @@ fn derive_chebyshev3(
     // vectorise it across pixels (78 % of stage 1's samples were scalar or 4-wide; profile of
     // 2026-12-05): split, the motion window's stage 1 took 1.4 ms instead of 5.3 at 640×400,
     // with the same values bit for bit. Their shared first lines are written out twice: a
-    // closure that wrote them (capturing the output slices) made the loops slower than one.
+    // closure that wrote them (capturing the output slices) left stage 1 slower than before.
     match motion_model {
         // The still model: the Chebyshev residual φ0 − 2φ1 + φ2 must vanish up to noise
         // (motion inside the window and mixed pixels break it).
