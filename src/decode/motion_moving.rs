@@ -1,8 +1,10 @@
 //! The second pass of a motion step ([`super::motion_correct`]): the full model on the pixels
-//! of a row that move or were corrected by the step before, [`BLOCK`] at a time. They are gathered into arrays on
-//! the stack, the model runs over every entry in one loop with no branches (each choice is
-//! computed both ways and one selected), so that it vectorises, and the marked entries are
-//! copied back.
+//! of a row that move or were corrected by the step before, [`BLOCK`] at a time. They are
+//! gathered into arrays on the stack, the model runs over every entry in two loops with no
+//! branches (each choice is computed both ways and one selected), so that they vectorise, and
+//! the marked entries are copied back. The first loop corrects each slot's phasor, the second
+//! finishes the pixel from the corrected phasors; as a single loop LLVM's cost model kept it
+//! scalar (see [`correct_gathered`]).
 //!
 //! Per pixel: undo the previous step's correction (`(M(g₀) + κ₀N(g₀))·z + κ₀·ō·v`), correct
 //! with the patch's `(u, κ)` (`z = (M(g) + κN(g))⁻¹·(ẑ − κ·ō·v)` per slot, [`super::motion`]),
@@ -102,35 +104,116 @@ pub(super) fn copy_pixel(from: &RowPlanes<'_>, i: usize, to: &mut RowPlanes<'_>,
 }
 
 /// The second pass over a block's gathered pixels: a function of its own, whose planes the
-/// compiler knows do not alias, so that the loop vectorises.
+/// compiler knows do not alias, so that the loops vectorise.
 #[multiversion::multiversion(targets(
     "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
     "x86_64+avx2+fma",
     "x86_64+sse4.1"
 ))]
 pub(super) fn correct_gathered(step: &Step<'_>, gathered: &mut Gathered) {
-    // Every entry, filled or not (the rest are not copied back): a fixed count lets the
-    // compiler see that the arrays do not overlap (with the filled count it asked for more
-    // run-time overlap checks than it makes, and stayed scalar).
-    let mut planes = gathered.planes();
-    let m = BLOCK;
     match (step.kind == StepKind::Refine, step.last) {
-        (false, false) => (0..m).for_each(|j| correct_pixel::<false, false>(step, &mut planes, j)),
-        (false, true) => (0..m).for_each(|j| correct_pixel::<false, true>(step, &mut planes, j)),
-        (true, false) => (0..m).for_each(|j| correct_pixel::<true, false>(step, &mut planes, j)),
-        (true, true) => (0..m).for_each(|j| correct_pixel::<true, true>(step, &mut planes, j)),
+        (false, false) => correct_gathered_as::<false, false>(step, gathered),
+        (false, true) => correct_gathered_as::<false, true>(step, gathered),
+        (true, false) => correct_gathered_as::<true, false>(step, gathered),
+        (true, true) => correct_gathered_as::<true, true>(step, gathered),
     }
 }
 
-/// The second pass, for one pixel that moves or was corrected by the step before: undo the
-/// previous correction, correct with the patch's `(u, κ)`, and write the next step's evidence
-/// or (on the last step) the unit phasor, the offsets without the fringe the motion leaked into
-/// them, and the reasons. The acceleration was taken by the first pass.
+/// [`correct_gathered`] for one kind of step, in two loops over every entry (filled or not:
+/// the rest are not copied back). A fixed count lets the compiler see that the arrays do not
+/// overlap (with the filled count it asked for more run-time overlap checks than it makes, and
+/// stayed scalar). As one loop, LLVM's cost model judged the whole model not worth vectorising
+/// (its loop-vectorize remarks: "vectorization is not beneficial"), and 83 % of the pass ran
+/// on scalar or 4-wide instructions; split where the slots' corrections are done, both halves
+/// vectorise.
 #[inline(always)]
-fn correct_pixel<const REFINE: bool, const LAST: bool>(
+fn correct_gathered_as<const REFINE: bool, const LAST: bool>(
     step: &Step<'_>,
-    row: &mut RowPlanes<'_>,
+    gathered: &mut Gathered,
+) {
+    let mut corrected = Corrected::default();
+    {
+        let planes = gathered.planes();
+        for j in 0..BLOCK {
+            correct_slots::<REFINE>(step, &planes, j, &mut corrected);
+        }
+    }
+    let mut planes = gathered.planes();
+    for j in 0..BLOCK {
+        finish_pixel::<LAST>(step, &mut planes, j, &corrected);
+    }
+}
+
+/// What the first loop of [`correct_gathered_as`] leaves for the second, per entry: the patch's
+/// `(u, κ)` (0 where it does not move) and each slot's [`SlotCorrection`].
+struct Corrected {
+    u: [f32; BLOCK],
+    kappa: [f32; BLOCK],
+    moving: [bool; BLOCK],
+    bright_ok: [bool; BLOCK],
+    /// Per slot: the still phasor, the corrected one, and its slopes in `u` and `κ`.
+    still: [[[f32; BLOCK]; 2]; 3],
+    z: [[[f32; BLOCK]; 2]; 3],
+    dz: [[[f32; BLOCK]; 4]; 3],
+    within: [[bool; BLOCK]; 3],
+    det: [[f32; BLOCK]; 3],
+}
+
+impl Default for Corrected {
+    fn default() -> Self {
+        Self {
+            u: [0.0; BLOCK],
+            kappa: [0.0; BLOCK],
+            moving: [false; BLOCK],
+            bright_ok: [false; BLOCK],
+            still: [[[0.0; BLOCK]; 2]; 3],
+            z: [[[0.0; BLOCK]; 2]; 3],
+            dz: [[[0.0; BLOCK]; 4]; 3],
+            within: [[false; BLOCK]; 3],
+            det: [[0.0; BLOCK]; 3],
+        }
+    }
+}
+
+impl Corrected {
+    #[inline(always)]
+    fn set_slot(&mut self, slot: usize, j: usize, c: &SlotCorrection) {
+        self.still[slot][0][j] = c.still.0;
+        self.still[slot][1][j] = c.still.1;
+        self.z[slot][0][j] = c.z.0;
+        self.z[slot][1][j] = c.z.1;
+        self.dz[slot][0][j] = c.dz[0].0;
+        self.dz[slot][1][j] = c.dz[0].1;
+        self.dz[slot][2][j] = c.dz[1].0;
+        self.dz[slot][3][j] = c.dz[1].1;
+        self.within[slot][j] = c.within;
+        self.det[slot][j] = c.det;
+    }
+
+    #[inline(always)]
+    fn slot(&self, slot: usize, j: usize) -> SlotCorrection {
+        SlotCorrection {
+            still: (self.still[slot][0][j], self.still[slot][1][j]),
+            z: (self.z[slot][0][j], self.z[slot][1][j]),
+            dz: [
+                (self.dz[slot][0][j], self.dz[slot][1][j]),
+                (self.dz[slot][2][j], self.dz[slot][3][j]),
+            ],
+            within: self.within[slot][j],
+            det: self.det[slot][j],
+        }
+    }
+}
+
+/// The first half of the model for one pixel that moves or was corrected by the step before:
+/// the patch's `(u, κ)`, and each slot's phasor with the previous correction undone and the
+/// new one applied. The acceleration was taken by the first pass.
+#[inline(always)]
+fn correct_slots<const REFINE: bool>(
+    step: &Step<'_>,
+    row: &RowPlanes<'_>,
     x: usize,
+    out: &mut Corrected,
 ) {
     let basis = step.basis;
     let PatchStep {
@@ -156,10 +239,37 @@ fn correct_pixel<const REFINE: bool, const LAST: bool>(
     // (which this is inlined into) has no inner loop and vectorises.
     let before = (corrected_before, u0, k0);
     let now = (moving, u, kappa);
+    let slot0 = correct_slot::<REFINE>(basis, 0, (phases[0], amps[0], lit[0]), before, now);
+    let slot1 = correct_slot::<REFINE>(basis, 1, (phases[1], amps[1], lit[1]), before, now);
+    let slot2 = correct_slot::<REFINE>(basis, 2, (phases[2], amps[2], lit[2]), before, now);
+    out.set_slot(0, x, &slot0);
+    out.set_slot(1, x, &slot1);
+    out.set_slot(2, x, &slot2);
+    out.u[x] = u;
+    out.kappa[x] = kappa;
+    out.moving[x] = moving;
+    out.bright_ok[x] = bright_ok;
+}
+
+/// The second half, for the same pixel: write the next step's evidence or (on the last step)
+/// the unit phasor, the offsets without the fringe the motion leaked into them, and the
+/// reasons.
+#[inline(always)]
+fn finish_pixel<const LAST: bool>(
+    step: &Step<'_>,
+    row: &mut RowPlanes<'_>,
+    x: usize,
+    corrected: &Corrected,
+) {
+    let basis = step.basis;
+    let (u, kappa) = (corrected.u[x], corrected.kappa[x]);
+    let (moving, bright_ok) = (corrected.moving[x], corrected.bright_ok[x]);
+    let offsets = [row.offset[0][x], row.offset[1][x], row.offset[2][x]];
+    let lit = basis.lit_offsets(offsets);
     let slots = [
-        correct_slot::<REFINE>(basis, 0, (phases[0], amps[0], lit[0]), before, now),
-        correct_slot::<REFINE>(basis, 1, (phases[1], amps[1], lit[1]), before, now),
-        correct_slot::<REFINE>(basis, 2, (phases[2], amps[2], lit[2]), before, now),
+        corrected.slot(0, x),
+        corrected.slot(1, x),
+        corrected.slot(2, x),
     ];
     let within = (bright_ok | !moving)
         & (slots[0].within | !moving)
@@ -234,7 +344,7 @@ fn correct_pixel<const REFINE: bool, const LAST: bool>(
     row.flags[x] = whole_to_flags(reason);
 }
 
-/// One slot of [`correct_pixel`]: its phasor as the still solve saw it, corrected, and how the
+/// One slot of [`correct_slots`]: its phasor as the still solve saw it, corrected, and how the
 /// correction moves with `u` and `κ`, with the model's determinant and range.
 #[derive(Clone, Copy)]
 struct SlotCorrection {
