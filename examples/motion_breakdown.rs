@@ -8,7 +8,8 @@
 //!
 //! Settings from the environment, for trying the decoder's parameters: `UNIT_DECAY` (the unit
 //! phasor's filter), `TRANSPORT=1` (carry it along the fine phase), `MIN_SUPPORT`,
-//! `MOTION_DECAY`, `ITERATIONS`, `WIDTH` and `HEIGHT` (640×400 by default); `STILL=1` also
+//! `MOTION_DECAY`, `ITERATIONS`, `MOTION_BLOCK` (the motion model's evidence summed over blocks
+//! of that many pixels square), `WIDTH` and `HEIGHT` (640×400 by default); `STILL=1` also
 //! prints, per window, the share of every lit pixel refused for each flag.
 
 use tremorscan::decode::{invalid, DecodeParams, SlidingDecoder, WindowOutcome};
@@ -83,6 +84,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if let Some(v) = env("ITERATIONS") {
         params.motion.iterations = v as u32;
+    }
+    if let Some(v) = env("MOTION_BLOCK") {
+        params.motion.block_px = v as u32;
     }
     let mut decoder = SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params)?;
     let mut frame = rig.blank_frame();

@@ -370,3 +370,30 @@ fn the_unit_phasor_carried_along_the_fine_phase_keeps_more_of_a_swaying_hand() {
         "{a:?} {b:?}"
     );
 }
+
+#[test]
+fn evidence_summed_over_blocks_keeps_the_trembling_fingertips() {
+    // Opt-in (`MotionParams::block_px`, docs/accuracy.md): the motion model's evidence summed
+    // over blocks of 2×2 pixels with the same reach, against the per-pixel sums, on the 10 mm
+    // tremor of the first test. The bounds are that test's; the still skin must not lose.
+    let rig = rig(10.0, 0.0, 0.0);
+    let mut blocks = DecodeParams::default();
+    blocks.motion.block_px = 2;
+    let pixels = evaluate_motion(&rig, DecodeParams::default(), 14, 3).unwrap();
+    let blocks = evaluate_motion(&rig, blocks, 14, 3).unwrap();
+    eprintln!("per pixel: {pixels:?}\nblocks: {blocks:?}");
+    let coverage = blocks.moving.coverage().unwrap();
+    assert!(coverage >= 0.965, "coverage {coverage}");
+    assert!(coverage >= pixels.moving.coverage().unwrap() - 0.005);
+    assert!(blocks.moving.gross_rate().unwrap() <= 0.015);
+    assert!(blocks.moving.rms_mm().unwrap() <= 0.17);
+    let (a, b) = (pixels.still, blocks.still);
+    assert!(
+        b.coverage().unwrap() >= a.coverage().unwrap() - 1e-3,
+        "{a:?} {b:?}"
+    );
+    assert!(
+        b.rms_mm().unwrap() <= 1.05 * a.rms_mm().unwrap(),
+        "{a:?} {b:?}"
+    );
+}

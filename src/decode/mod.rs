@@ -29,6 +29,7 @@ pub mod fastmath;
 mod method;
 pub mod motion;
 mod motion_basis;
+mod motion_blocks;
 mod motion_correct;
 mod motion_evidence;
 mod motion_moving;
@@ -38,6 +39,7 @@ mod output;
 pub mod phasor;
 pub mod reference;
 pub mod smooth;
+mod smooth_blocks;
 mod smooth_transport;
 pub mod solver;
 mod temporal;
@@ -165,6 +167,10 @@ pub struct MotionParams {
     pub decay: f32,
     /// Gauss–Newton steps of the velocity (each one edge-aware sum and one correction).
     pub iterations: u32,
+    /// The side of the blocks the evidence is summed over, camera px: 1 sums per pixel (the
+    /// default); 2 or more sums blocks of that many pixels square with the same reach
+    /// (`smooth_blocks`; CPU only, measured against the default in docs/accuracy.md).
+    pub block_px: u32,
 }
 
 impl MotionParams {
@@ -188,6 +194,7 @@ impl Default for MotionParams {
             // serves both. Measured on the rig over 13 windows (docs/accuracy.md).
             decay: 0.8,
             iterations: 2,
+            block_px: 1,
         }
     }
 }

@@ -73,6 +73,7 @@
 //! as before.
 
 pub use super::motion_basis::{MotionBasis, MAX_TURN_RAD};
+use super::motion_blocks::step_in_blocks;
 use super::motion_correct::{correct_row, RowPlanes, Step};
 pub(crate) use super::motion_evidence::{chebyshev3, evidence, gain2, inconsistent};
 use super::smooth::{smooth_planes, Planes};
@@ -128,6 +129,26 @@ pub(crate) fn motion_step(
     out: &mut DecodeOutput,
 ) {
     let decay = params.motion.decay;
+    let constants = StepConstants::new(basis, noise_gray, previous_s);
+    let step = Step {
+        basis,
+        gain2: gain2(solver),
+        limit: params.max_disagreement_chi2 * params.camera_noise_gray.powi(2),
+        min_amplitude: params.min_amplitude,
+        kind,
+        last,
+        inv_noise2: constants.inv_noise2,
+        prior_u: constants.prior_u,
+        prior_k: constants.prior_k,
+        inv_since: constants.inv_since,
+        shift_per_velocity_change: constants.shift_per_velocity_change,
+        max_velocity_change: constants.max_velocity_change,
+    };
+    let block = params.motion.block_px as usize;
+    if block > 1 {
+        step_in_blocks(&step, decay, block, out);
+        return;
+    }
     {
         smooth_planes(&mut Planes::of_unit_phasor(out), decay);
         let n = out.width * out.height;
@@ -145,21 +166,6 @@ pub(crate) fn motion_step(
         };
         smooth_planes(&mut planes, decay);
     }
-    let constants = StepConstants::new(basis, noise_gray, previous_s);
-    let step = Step {
-        basis,
-        gain2: gain2(solver),
-        limit: params.max_disagreement_chi2 * params.camera_noise_gray.powi(2),
-        min_amplitude: params.min_amplitude,
-        kind,
-        last,
-        inv_noise2: constants.inv_noise2,
-        prior_u: constants.prior_u,
-        prior_k: constants.prior_k,
-        inv_since: constants.inv_since,
-        shift_per_velocity_change: constants.shift_per_velocity_change,
-        max_velocity_change: constants.max_velocity_change,
-    };
     let w = out.width;
     let n = w * out.height;
     let (ev0, rest) = out.motion_evidence.split_at_mut(n);
@@ -302,7 +308,7 @@ pub(crate) fn remove_acceleration_shift(basis: &MotionBasis, out: &mut DecodeOut
 }
 
 /// The first `w` values of each of the three planes of a row-planar row of `3·w` values.
-fn split3(row: &mut [f32], w: usize) -> [&mut [f32]; 3] {
+pub(super) fn split3(row: &mut [f32], w: usize) -> [&mut [f32]; 3] {
     let (a, rest) = row.split_at_mut(w);
     let (b, c) = rest.split_at_mut(w);
     [&mut a[..w], &mut b[..w], &mut c[..w]]

@@ -7,6 +7,7 @@
 //! coordinate for the temporal order check). Everything is allocated once for a shape by
 //! [`DecodeOutput::new`] and reused: no stage allocates per window.
 
+use super::smooth_blocks::BlockScratch;
 use super::{invalid, motion_noise, phasor, smooth, WindowSolver, BAND_ROWS};
 
 /// Flags that say a pixel's motion was not measured: too little light, saturation, a residual
@@ -85,6 +86,8 @@ pub struct DecodeOutput {
     pub(crate) band_scratch_len: usize,
     /// The motion model's noise estimate's samples.
     pub(crate) noise_scratch: Vec<f32>,
+    /// The motion model's block planes, when it sums its evidence over blocks.
+    pub(crate) motion_blocks: BlockScratch,
     /// The patch velocity of every pixel in the last window the motion model decoded (NaN where
     /// its patch had no evidence), px/s, and that window's centre time (NaN before the first):
     /// the acceleration's other end.
@@ -171,6 +174,7 @@ impl DecodeOutput {
             band_scratch: vec![0.0; bands * band_scratch_len],
             band_scratch_len,
             noise_scratch: Vec::with_capacity(n / (motion_noise::GRID_STEP_PX.pow(2)) + width),
+            motion_blocks: BlockScratch::default(),
             patch_velocity_px_per_s: vec![f32::NAN; n],
             patch_velocity_time_s: f64::NAN,
             patch_moving: vec![0; n],

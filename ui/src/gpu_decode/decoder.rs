@@ -97,6 +97,12 @@ pub(super) fn unsupported(
             params.unwrap
         ));
     }
+    if params.motion.block_px > 1 {
+        return Some(format!(
+            "the GPU decoder sums the motion model's evidence per pixel, not over blocks of {} px",
+            params.motion.block_px
+        ));
+    }
     None
 }
 
