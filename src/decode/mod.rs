@@ -168,8 +168,9 @@ pub struct MotionParams {
     /// Gauss–Newton steps of the velocity (each one edge-aware sum and one correction).
     pub iterations: u32,
     /// The side of the blocks the evidence is summed over, camera px: 1 sums per pixel (the
-    /// default); 2 or more sums blocks of that many pixels square with the same reach
-    /// (`smooth_blocks`; CPU only, measured against the default in docs/accuracy.md).
+    /// default); 2, 3 or 4 sums blocks of that many pixels square with the same reach, and
+    /// larger values sum blocks of 4 (`motion_blocks`; CPU only, the GPU decoder refuses any
+    /// value above 1; measured against the default in docs/accuracy.md).
     pub block_px: u32,
 }
 
