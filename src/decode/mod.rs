@@ -37,6 +37,7 @@ pub mod motion_noise;
 pub mod noise;
 mod output;
 pub mod phasor;
+mod phasor_blocks;
 pub mod reference;
 pub mod smooth;
 mod smooth_blocks;
@@ -181,6 +182,12 @@ impl MotionParams {
             model: MotionModel::Off,
             ..Self::default()
         }
+    }
+
+    /// The side of the blocks the evidence is summed over: 1 (per pixel) for 0 or 1, else
+    /// [`Self::block_px`] up to 4.
+    pub fn block_size(&self) -> usize {
+        self.block_px.clamp(1, 4) as usize
     }
 }
 

@@ -144,7 +144,7 @@ pub(crate) fn motion_step(
         shift_per_velocity_change: constants.shift_per_velocity_change,
         max_velocity_change: constants.max_velocity_change,
     };
-    let block = params.motion.block_px as usize;
+    let block = params.motion.block_size();
     if block > 1 {
         step_in_blocks(&step, decay, block, out);
         return;

@@ -1,17 +1,18 @@
 //! One Gauss–Newton step of the motion model ([`super::motion`]) with its evidence summed over
 //! blocks of pixels ([`super::MotionParams::block_px`] of 2 to 4; opt-in, CPU only).
 //!
-//! The first step sums stage 1's six evidence planes over the blocks and links the blocks
-//! ([`super::smooth_blocks`]); every step then smooths the block planes (the edge-aware
+//! Stage 1 sums its evidence over the blocks as it solves each row
+//! ([`super::phasor_blocks`]); the first step links the blocks ([`super::smooth_blocks`]);
+//! every step then smooths the block planes (the edge-aware
 //! recursion over the blocks, with the decay raised to the block's size, so that the reach in
 //! pixels stays) and works through the image one row of blocks at a time. For each of its pixel
 //! rows the row's sums are expanded from the blocks into a scratch row, the step's kernel
 //! ([`super::motion_correct::correct_row`], unchanged) solves and corrects the row, and the
 //! evidence it leaves in the scratch row for the next step is added into that step's blocks;
 //! on the last step the scratch row's unit phasor and support are copied to their planes for
-//! stage 2. So the per-pixel sums never exist at full resolution: of the four edge-aware sums
-//! of three planes and the two passes writing six evidence planes that the per-pixel step
-//! costs, one read of the six planes stays.
+//! stage 2. So the per-pixel evidence never exists at full resolution: of the four edge-aware
+//! sums of three planes and the three passes writing six evidence planes that the per-pixel
+//! steps cost, none stays.
 
 use super::motion::split3;
 use super::motion_correct::{correct_row, RowPlanes, Step};
@@ -20,7 +21,7 @@ use rayon::prelude::*;
 
 /// One step of the motion model over blocks of `block` (2 to 4) pixels square, with the
 /// evidence's `decay` per pixel. Stage 1 (on the first step) or the step before left the
-/// evidence as [`super::motion::motion_step`] describes.
+/// evidence summed into `out.motion_blocks`' next sums.
 pub(super) fn step_in_blocks(step: &Step<'_>, decay: f32, block: usize, out: &mut DecodeOutput) {
     match block {
         2 => step_in_blocks_of::<2>(step, decay, out),
@@ -31,22 +32,13 @@ pub(super) fn step_in_blocks(step: &Step<'_>, decay: f32, block: usize, out: &mu
 
 fn step_in_blocks_of<const B: usize>(step: &Step<'_>, decay: f32, out: &mut DecodeOutput) {
     let (w, h) = (out.width, out.height);
-    let n = w * h;
     let (bw, bh) = (w.div_ceil(B), h.div_ceil(B));
     let mut blocks = std::mem::take(&mut out.motion_blocks);
     blocks.fit(bw, bh);
     if step.kind == super::motion::StepKind::FromRest {
-        let (e0, rest) = out.motion_evidence.split_at(n);
-        let (e1, e2) = rest.split_at(n);
-        let planes = [
-            &out.unit_re[..],
-            &out.unit_im,
-            &out.support,
-            e0,
-            e1,
-            &e2[..n],
-        ];
-        blocks.gather(planes, &out.connect, (w, h), B);
+        // Stage 1 left its evidence summed into the blocks' next sums.
+        blocks.link(&out.connect, (w, h), B);
+        blocks.advance(bw);
     }
     blocks.smooth((bw, bh), decay.powi(B as i32));
     let sums = &blocks.sums;

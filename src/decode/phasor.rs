@@ -36,6 +36,15 @@ pub(crate) fn solve_phasors<F: Borrow<Frame> + Sync>(
     motion_basis: Option<&MotionBasis>,
     out: &mut DecodeOutput,
 ) {
+    if let Some(basis) = motion_basis {
+        let block = params.motion.block_size();
+        if block > 1 {
+            super::phasor_blocks::solve_phasors_in_blocks(
+                solver, frames, params, basis, block, out,
+            );
+            return;
+        }
+    }
     let w = out.width;
     let nf = out.frequencies;
     let nc = out.channels;
@@ -115,18 +124,18 @@ pub(crate) fn scratch_len(solver: &WindowSolver) -> usize {
     CHUNK_PX * (solver.observations + solver.unknowns + 1)
 }
 
-struct RowOut<'a> {
+pub(super) struct RowOut<'a> {
     /// Distance between the planes of `phase`, `amp` and `colour`.
-    stride: usize,
-    phase: &'a mut [f32],
-    amp: &'a mut [f32],
-    colour: &'a mut [f32],
-    re: &'a mut [f32],
-    im: &'a mut [f32],
-    support: &'a mut [f32],
+    pub(super) stride: usize,
+    pub(super) phase: &'a mut [f32],
+    pub(super) amp: &'a mut [f32],
+    pub(super) colour: &'a mut [f32],
+    pub(super) re: &'a mut [f32],
+    pub(super) im: &'a mut [f32],
+    pub(super) support: &'a mut [f32],
     /// The motion model's evidence planes `ue`, `ke` and count (see [`motion::evidence`]).
-    motion: [&'a mut [f32]; 3],
-    flags: &'a mut [u16],
+    pub(super) motion: [&'a mut [f32]; 3],
+    pub(super) flags: &'a mut [u16],
 }
 
 #[allow(
@@ -138,7 +147,7 @@ struct RowOut<'a> {
     "x86_64+avx2+fma",
     "x86_64+sse4.1"
 ))]
-fn solve_row<F: Borrow<Frame>>(
+pub(super) fn solve_row<F: Borrow<Frame>>(
     solver: &WindowSolver,
     frames: &[F],
     params: &DecodeParams,

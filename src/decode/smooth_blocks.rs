@@ -53,18 +53,8 @@ impl BlockScratch {
             .resize(3 * bw * bh.div_ceil(VERTICAL_BLOCK_ROWS), 0.0);
     }
 
-    /// Sums the six full-resolution planes `planes` (`w`×`h`) over blocks of `block` pixels and
-    /// links the blocks from the pixels' links `connect`.
-    pub(crate) fn gather(
-        &mut self,
-        planes: [&[f32]; 6],
-        connect: &[u8],
-        (w, h): (usize, usize),
-        block: usize,
-    ) {
-        for (plane, sums) in planes.into_iter().zip(&mut self.sums) {
-            sum_blocks(plane, (w, h), block, sums);
-        }
+    /// Links the blocks of `block` pixels from the pixels' links `connect` (`w`×`h`).
+    pub(crate) fn link(&mut self, connect: &[u8], (w, h): (usize, usize), block: usize) {
         link_blocks(connect, (w, h), block, &mut self.connect);
     }
 
@@ -103,51 +93,30 @@ fn band_scratch_len(bw: usize) -> usize {
     4 * bw
 }
 
-/// `sums[block]` = the sum of `plane` over the block's pixels.
-fn sum_blocks(plane: &[f32], (w, h): (usize, usize), block: usize, sums: &mut [f32]) {
-    match block {
-        2 => sum_blocks_of::<2>(plane, (w, h), sums),
-        3 => sum_blocks_of::<3>(plane, (w, h), sums),
-        4 => sum_blocks_of::<4>(plane, (w, h), sums),
-        _ => sum_blocks_any(plane, (w, h), block, sums),
+/// Adds one pixel row of a block row into `line`, which the block row's first pixel row
+/// (`first`) overwrites. With [`line_to_blocks`] after its last row: the block sums, rows
+/// added along the whole line first (a loop that vectorises), then each run of `B`.
+#[inline]
+pub(crate) fn add_to_line(first: bool, row: &[f32], line: &mut [f32]) {
+    if first {
+        line.copy_from_slice(row);
+    } else {
+        for (total, &v) in line.iter_mut().zip(row) {
+            *total += v;
+        }
     }
 }
 
-/// [`sum_blocks`] for a block size known when compiling: the block's rows are added along the
-/// whole line first (a loop that vectorises), then each run of `B` of that line.
-fn sum_blocks_of<const B: usize>(plane: &[f32], (w, h): (usize, usize), sums: &mut [f32]) {
-    let bw = w.div_ceil(B);
-    let rows = sums.par_chunks_mut(bw).enumerate();
-    rows.for_each_init(Vec::new, |line, (by, row)| {
-        line.clear();
-        line.extend_from_slice(&plane[by * B * w..(by * B + 1) * w]);
-        for y in by * B + 1..((by + 1) * B).min(h) {
-            for (total, &v) in line.iter_mut().zip(&plane[y * w..(y + 1) * w]) {
-                *total += v;
-            }
-        }
-        let whole = w / B;
-        for (sum, pixels) in row[..whole].iter_mut().zip(line.chunks_exact(B)) {
-            *sum = pixels.iter().sum();
-        }
-        if whole < bw {
-            row[whole] = line[whole * B..].iter().sum();
-        }
-    });
-}
-
-/// [`sum_blocks`] for any block size.
-fn sum_blocks_any(plane: &[f32], (w, h): (usize, usize), block: usize, sums: &mut [f32]) {
-    let bw = w.div_ceil(block);
-    sums.par_chunks_mut(bw).enumerate().for_each(|(by, row)| {
-        row.fill(0.0);
-        for y in by * block..((by + 1) * block).min(h) {
-            let line = &plane[y * w..(y + 1) * w];
-            for (sum, pixels) in row.iter_mut().zip(line.chunks(block)) {
-                *sum += pixels.iter().sum::<f32>();
-            }
-        }
-    });
+/// `sums[i]` = the sum of the `i`-th run of `B` values of `line` (the last run may be short).
+#[inline]
+pub(crate) fn line_to_blocks<const B: usize>(line: &[f32], sums: &mut [f32]) {
+    let whole = line.len() / B;
+    for (sum, pixels) in sums[..whole].iter_mut().zip(line.chunks_exact(B)) {
+        *sum = pixels.iter().sum();
+    }
+    if let Some(last) = sums.get_mut(whole) {
+        *last = line[whole * B..].iter().sum();
+    }
 }
 
 /// The blocks' links: [`RIGHT`] (or [`DOWN`]) where at least half of the pixel pairs across the
@@ -187,6 +156,20 @@ fn link_blocks(connect: &[u8], (w, h): (usize, usize), block: usize, links: &mut
 mod tests {
     use super::*;
 
+    /// The block sums of `plane` (`w`×`h`), a row at a time as stage 1 adds them.
+    fn sum_blocks<const B: usize>(plane: &[f32], (w, h): (usize, usize)) -> Vec<f32> {
+        let bw = w.div_ceil(B);
+        let mut sums = vec![f32::NAN; bw * h.div_ceil(B)];
+        let mut line = vec![0.0; w];
+        for (y, row) in plane.chunks_exact(w).enumerate() {
+            add_to_line(y.is_multiple_of(B), row, &mut line);
+            if (y + 1).is_multiple_of(B) || y + 1 == h {
+                line_to_blocks::<B>(&line, &mut sums[y / B * bw..(y / B + 1) * bw]);
+            }
+        }
+        sums
+    }
+
     #[test]
     fn a_connected_field_sums_like_the_pixels_and_an_edge_stops_it() {
         // 12×8 pixels in blocks of 2, all linked except across the column between x = 5 and 6.
@@ -207,7 +190,14 @@ mod tests {
         let mut blocks = BlockScratch::default();
         let (bw, bh) = (w / 2, h / 2);
         blocks.fit(bw, bh);
-        blocks.gather([&a, &b, &zero, &zero, &zero, &zero], &connect, (w, h), 2);
+        for (k, plane) in [&a, &b, &zero, &zero, &zero, &zero].into_iter().enumerate() {
+            let sums = sum_blocks::<2>(plane, (w, h));
+            for (by, row) in sums.chunks_exact(bw).enumerate() {
+                blocks.next[(6 * by + k) * bw..(6 * by + k + 1) * bw].copy_from_slice(row);
+            }
+        }
+        blocks.advance(bw);
+        blocks.link(&connect, (w, h), 2);
         blocks.smooth((bw, bh), 0.8f32.powi(2));
         // Each side keeps its own value: the ratio of the sums is its mean.
         for by in 0..bh {
@@ -227,8 +217,7 @@ mod tests {
     fn partial_blocks_at_the_border_sum_what_they_hold() {
         let (w, h) = (5, 3);
         let plane: Vec<f32> = (0..w * h).map(|i| i as f32).collect();
-        let mut sums = vec![0.0; 3 * 2];
-        sum_blocks(&plane, (w, h), 2, &mut sums);
+        let sums = sum_blocks::<2>(&plane, (w, h));
         // Block (2, 0): pixels (4, 0) and (4, 1); block (2, 1): pixel (4, 2).
         assert_eq!(sums[2], 4.0 + 9.0);
         assert_eq!(sums[5], 14.0);
