@@ -9,7 +9,8 @@
 //! Settings from the environment, for trying the decoder's parameters: `UNIT_DECAY` (the unit
 //! phasor's filter), `TRANSPORT=1` (carry it along the fine phase), `MIN_SUPPORT`,
 //! `MOTION_DECAY`, `ITERATIONS`, `MOTION_BLOCK` (the motion model's evidence summed over blocks
-//! of that many pixels square), `WIDTH` and `HEIGHT` (640×400 by default); `STILL=1` also
+//! of that many pixels square), `REACH` (the sums' reach scale, `DecodeParams::reach_scale`;
+//! the decays are stated at 640 px wide), `WIDTH` and `HEIGHT` (640×400 by default); `STILL=1` also
 //! prints, per window, the share of every lit pixel refused for each flag.
 
 use tremorscan::decode::{invalid, DecodeParams, SlidingDecoder, WindowOutcome};
@@ -78,6 +79,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(v) = env("MOTION_DECAY") {
         params.motion.decay = v;
     }
+    params.reach_scale = env("REACH");
     params.smoothing.transport = std::env::var("TRANSPORT").is_ok();
     if let Some(v) = env("MIN_SUPPORT") {
         params.smoothing.min_support = v;

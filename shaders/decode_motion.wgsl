@@ -48,19 +48,21 @@ const M_MAX_TURN: u32 = 71u;
 const M_MIN_DET: u32 = 72u;
 const M_SIGNIFICANCE: u32 = 73u;
 const M_MIN_SHIFT: u32 = 74u;
+// The camera noise variance the evidence at rest is corrected for (MotionBasis::noise_bias).
+const M_BIAS_NOISE2: u32 = 75u;
 // The window's values.
-const M_ON: u32 = 75u;
-const M_PRIOR_U: u32 = 76u;
-const M_PRIOR_K: u32 = 77u;
-const M_INV_NOISE2: u32 = 78u;
-const M_INV_SINCE: u32 = 79u;
-const M_MAX_DU: u32 = 80u;
-const M_SHIFT_PER_DU: u32 = 81u;
-const M_CONSECUTIVE: u32 = 82u;
-const M_MAX_STEP: u32 = 83u;
-const M_DECAY: u32 = 84u;
-const M_HALO: u32 = 85u;
-const M_CHECK_TIME: u32 = 86u;
+const M_ON: u32 = 76u;
+const M_PRIOR_U: u32 = 77u;
+const M_PRIOR_K: u32 = 78u;
+const M_INV_NOISE2: u32 = 79u;
+const M_INV_SINCE: u32 = 80u;
+const M_MAX_DU: u32 = 81u;
+const M_SHIFT_PER_DU: u32 = 82u;
+const M_CONSECUTIVE: u32 = 83u;
+const M_MAX_STEP: u32 = 84u;
+const M_DECAY: u32 = 85u;
+const M_HALO: u32 = 86u;
+const M_CHECK_TIME: u32 = 87u;
 
 // Planes of `work` beyond decode.wgsl's: the evidence (ue, ke, count) and its sums' scratch.
 const UE: u32 = 7u;
@@ -232,16 +234,44 @@ fn write_evidence(i: u32, ev: Evidence, keep: f32) {
     work[COUNT * n + i] = keep;
 }
 
-// Stage 1's part (called by `solve`): the still pixel's evidence from its solved phasors.
-fn stage1_evidence(i: u32, z0: vec2<f32>, z1: vec2<f32>, z2: vec2<f32>, c: Cheb, offsets: vec3<f32>, keep: f32) {
-    let lit = lit_offsets(offsets);
+// What a slot's own noise adds to (D_u·e, D_κ·e) on average, over the noise variance
+// (MotionBasis::noise_bias): the slope terms' turn with the phase times the slot's phase
+// variance.
+fn slot_noise_bias(z: vec2<f32>, lit: f32, f: f32, gain2: f32) -> vec2<f32> {
+    let jz = vec2<f32>(-z.y, z.x);
+    let a2 = z.x * z.x + z.y * z.y;
+    let scale = gain2 / (a2 * a2);
+    let turn_g = cross2(jz, apply(mat(M_DM), z)) + cross2(z, apply(mat(M_DM), jz));
+    let n = apply(mat(M_N0), z) + lit * v_vec();
+    let turn_n = cross2(jz, n) + cross2(z, apply(mat(M_N0), jz));
+    return vec2<f32>(f * turn_g * scale, turn_n * scale);
+}
+
+// A still pixel's evidence (stage 1, and a step's pixels at rest), less what its own noise
+// adds on average at the basis's noise level (motion_evidence::evidence).
+fn evidence_at_rest(z0: vec2<f32>, z1: vec2<f32>, z2: vec2<f32>, c: Cheb, lit: vec3<f32>, keep: f32) -> Evidence {
     let z = array<vec2<f32>, 3>(z0, z1, z2);
     let dz = array<vec4<f32>, 3>(
         slope_at_rest(z0, lit.x, P.freq.x),
         slope_at_rest(z1, lit.y, P.freq.y),
         slope_at_rest(z2, lit.z, P.freq.z),
     );
-    write_evidence(i, evidence_with(z, dz, c, keep, vec2<f32>(0.0)), keep);
+    var ev = evidence_with(z, dz, c, keep, vec2<f32>(0.0));
+    let g = P.gain * P.gain * vec3<f32>(1.0, 4.0, 1.0);
+    let bias = slot_noise_bias(z0, lit.x, P.freq.x, g.x) + slot_noise_bias(z1, lit.y, P.freq.y, g.y)
+        + slot_noise_bias(z2, lit.z, P.freq.z, g.z);
+    let w = M[M_BIAS_NOISE2] * keep / c.var_over_noise;
+    let b = w * bias;
+    if (finite(b.x) && finite(b.y)) {
+        ev.ue -= b.x;
+        ev.ke -= b.y;
+    }
+    return ev;
+}
+
+// Stage 1's part (called by `solve`): the still pixel's evidence from its solved phasors.
+fn stage1_evidence(i: u32, z0: vec2<f32>, z1: vec2<f32>, z2: vec2<f32>, c: Cheb, offsets: vec3<f32>, keep: f32) {
+    write_evidence(i, evidence_at_rest(z0, z1, z2, c, lit_offsets(offsets), keep), keep);
 }
 
 // The model's response M(g) + κ·N(g) (src/decode/motion_basis.rs).
@@ -439,13 +469,7 @@ fn motion_step(id: vec3<u32>, refine: bool, last: bool) {
             write_unit(i, c, reason_bits(c, bits[FLAGS * n + i]));
         } else {
             let keep = select(0.0, 1.0, bits[FLAGS * n + i] == 0u);
-            let z = array<vec2<f32>, 3>(z0, z1, z2);
-            let dz = array<vec4<f32>, 3>(
-                slope_at_rest(z0, lit.x, P.freq.x),
-                slope_at_rest(z1, lit.y, P.freq.y),
-                slope_at_rest(z2, lit.z, P.freq.z),
-            );
-            write_evidence(i, evidence_with(z, dz, c, keep, vec2<f32>(0.0)), keep);
+            write_evidence(i, evidence_at_rest(z0, z1, z2, c, lit, keep), keep);
         }
         return;
     }

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{checks_off, decode_once, still_hand_rig};
+use common::{checks_off, decode_once, still_hand_rig, still_hand_rig_at};
 use tremorscan::decode::{DecodeParams, MotionParams, UnwrapMethod};
 use tremorscan::rig::edge_eval::evaluate_edges;
 use tremorscan::rig::{NoiseModel, RigConfig, SceneConfig, VirtualRig};
@@ -83,9 +83,12 @@ fn the_motion_model_sees_no_motion_in_a_noisy_still_hand() {
     // decodes exactly as the paper's still window does, also on a camera noisier than the
     // setting: before the noise was measured, σ = 4 gave 7,277 wrong fringe orders; σ = 2 gave
     // 0.56 % of the valid pixels when the motion was tested only after the last step, and 12
-    // pixels when tested at every step at the 10⁻⁴ level.
-    for sigma in [2.0, 4.0] {
-        let config = still_hand_rig(NoiseModel::gaussian(sigma));
+    // pixels when tested at every step at the 10⁻⁴ level. At 1280×800 a fringe spans twice the
+    // pixels and a patch no longer averages over the slopes' turn with it, so the bias the
+    // pixels' own noise gives their evidence showed: before it was taken out, 1,887 pixels of
+    // the still hand at σ = 2 got a velocity, and 0.29 % of its inside a wrong fringe order.
+    for (sigma, (width, height)) in [(2.0, (640, 400)), (4.0, (640, 400)), (2.0, (1280, 800))] {
+        let config = still_hand_rig_at(NoiseModel::gaussian(sigma), width, height);
         let seq = config.default_sequence().unwrap();
         let still_params = DecodeParams {
             motion: MotionParams::off(),
@@ -94,7 +97,7 @@ fn the_motion_model_sees_no_motion_in_a_noisy_still_hand() {
         let (motion, out) = decode_once(config.clone(), &seq, DecodeParams::default());
         let (still, _) = decode_once(config, &seq, still_params);
         let moved = out.velocity_px_per_s.iter().filter(|&&u| u != 0.0).count();
-        assert_eq!(moved, 0, "σ {sigma}");
+        assert_eq!(moved, 0, "σ {sigma}, {width}×{height}");
         // The same figures up to rounding: the phases pass through the correction's arithmetic
         // again, so a pixel at a threshold may fall the other way (3 of 229,000 at σ = 4).
         let close = |a: usize, b: usize| a.abs_diff(b) as f64 <= 1e-4 * b as f64 + 1.0;
@@ -110,7 +113,13 @@ fn the_motion_model_sees_no_motion_in_a_noisy_still_hand() {
             (motion.rms_px / still.rms_px - 1.0).abs() < 1e-3,
             "σ {sigma}"
         );
-        if sigma == 2.0 {
+        // No more wrong fringe orders than the still window's (at 1280×800 it has one pixel
+        // a fringe off of 984,600 valid; the motion model before had 2,800).
+        assert!(
+            motion.unwrap_errors <= still.unwrap_errors,
+            "{width}×{height}: {motion:?} {still:?}"
+        );
+        if sigma == 2.0 && width == 640 {
             assert_eq!(motion.unwrap_errors, 0, "{motion:?}");
             // Coverage away from the outline: on it the mixed-pixel check refuses the pixels
             // touching each depth edge by design (`tests/mixed_pixels.rs`), about 0.8 % of the

@@ -291,7 +291,16 @@ pub struct DecodeParams {
     pub smoothing: SmoothingParams,
     /// Motion inside the window.
     pub motion: MotionParams,
+    /// How many camera px each px of the decays' reach stands for ([`Self::reach_scale_at`]):
+    /// `None` follows the image's width, so that the edge-aware sums reach as far on the skin
+    /// at the camera's full resolution as in the 640 px wide image they were chosen on.
+    pub reach_scale: Option<f32>,
 }
+
+/// The image width, camera px, the decays of the edge-aware sums are stated for: the rig's
+/// default image, the camera's 1920×1200 binned 3×3, where they were measured
+/// (docs/accuracy.md, Motion).
+pub const REACH_REFERENCE_WIDTH_PX: usize = 640;
 
 impl Default for DecodeParams {
     fn default() -> Self {
@@ -306,7 +315,42 @@ impl Default for DecodeParams {
             mixed_limit_px: 1.5,
             smoothing: SmoothingParams::default(),
             motion: MotionParams::default(),
+            reach_scale: None,
         }
+    }
+}
+
+impl DecodeParams {
+    /// How many camera px of an image `width_px` wide each px of the decays' reach stands for:
+    /// [`Self::reach_scale`] when set (at least 1), else `width_px` over
+    /// [`REACH_REFERENCE_WIDTH_PX`], never below 1. A sum's decay is per camera px, so the same
+    /// decay reaches a third as far on the skin at 1920 px as at 640 px: there the fringes and
+    /// the ripple the velocity's correction leaves on them span three times the pixels, and
+    /// sums that no longer average over them lose the moving skin (docs/accuracy.md). Narrower
+    /// images keep the stated decays: their sums would otherwise pool too few samples.
+    pub fn reach_scale_at(&self, width_px: usize) -> f32 {
+        let scale = self
+            .reach_scale
+            .unwrap_or(width_px as f32 / REACH_REFERENCE_WIDTH_PX as f32);
+        if scale.is_finite() {
+            scale.max(1.0)
+        } else {
+            1.0
+        }
+    }
+
+    /// The unit phasor's decay per camera px in an image `width_px` wide: the same reach on the
+    /// skin as [`SmoothingParams::decay`] at the reference width.
+    pub fn unit_decay_at(&self, width_px: usize) -> f32 {
+        self.smoothing
+            .decay
+            .powf(1.0 / self.reach_scale_at(width_px))
+    }
+
+    /// The velocity evidence's decay per camera px in an image `width_px` wide (as
+    /// [`Self::unit_decay_at`] for [`MotionParams::decay`]).
+    pub fn motion_decay_at(&self, width_px: usize) -> f32 {
+        self.motion.decay.powf(1.0 / self.reach_scale_at(width_px))
     }
 }
 
@@ -343,7 +387,19 @@ pub fn motion_basis<F: Borrow<Frame>>(
         return None;
     }
     let times = [0, 1, 2].map(|k| frames[k].borrow().time_s);
-    motion::MotionBasis::new(solver, times)
+    let basis = motion::MotionBasis::new(solver, times)?;
+    // The evidence at rest is corrected for the noise the window's frames show (on a sparse
+    // grid, before stage 1), else for the configured level.
+    let mut samples = Vec::new();
+    let measured = noise::window_noise_samples(
+        solver,
+        frames,
+        params.min_amplitude,
+        params.saturation_level,
+        &mut samples,
+    )
+    .and_then(|_| noise::noise_from_samples(&mut samples));
+    Some(basis.with_noise_gray(measured.unwrap_or(params.camera_noise_gray)))
 }
 
 /// How many frames each decoded coordinate of a stream of `sequence` averages, which the tremor
@@ -473,7 +529,11 @@ pub(crate) fn finish_window(
     }
     let corrected = Instant::now();
     if params.unwrap == UnwrapMethod::ChebyshevRobust {
-        smooth::smooth_unit_phasor(out, &params.smoothing, chebyshev_n);
+        let smoothing = SmoothingParams {
+            decay: params.unit_decay_at(out.width),
+            ..params.smoothing
+        };
+        smooth::smooth_unit_phasor(out, &smoothing, chebyshev_n);
     }
     let smoothed = Instant::now();
     unwrap::unwrap_and_combine(solver, params, chebyshev_n, out);

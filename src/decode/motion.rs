@@ -128,7 +128,7 @@ pub(crate) fn motion_step(
     previous_s: Option<f32>,
     out: &mut DecodeOutput,
 ) {
-    let decay = params.motion.decay;
+    let decay = params.motion_decay_at(out.width);
     let constants = StepConstants::new(basis, noise_gray, previous_s);
     let step = Step {
         basis,

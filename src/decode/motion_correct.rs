@@ -24,7 +24,7 @@ use super::fastmath::{sin_cos_phase, whole_to_flags};
 use super::invalid;
 use super::motion::{StepKind, MIN_ACCELERATION_SHIFT_PX, MOTION_SIGNIFICANCE};
 use super::motion_basis::MotionBasis;
-use super::motion_evidence::{chebyshev3_of, evidence_with, inconsistent};
+use super::motion_evidence::{chebyshev3_of, evidence, inconsistent};
 use super::motion_moving::{copy_pixel, correct_gathered, Gathered};
 
 /// Pixels per block: the marks of a block sit on the stack between its two passes.
@@ -333,8 +333,7 @@ fn still_pass<const REFINE: bool, const LAST: bool>(
             // alone.
             let offsets = [row.offset[0][x], row.offset[1][x], row.offset[2][x]];
             let keep = if row.flags[x] == 0 { 1.0 } else { 0.0 };
-            let dz = basis.slopes_at_rest(z, basis.lit_offsets(offsets));
-            let ev = evidence_with(z, dz, &cheb, keep, (0.0, 0.0));
+            let ev = evidence(basis, z, &cheb, offsets, keep, step.gain2);
             row.uu[x] = keep_if(ev.uu, row.uu[x]);
             row.uk[x] = keep_if(ev.uk, row.uk[x]);
             row.kk[x] = keep_if(ev.kk, row.kk[x]);

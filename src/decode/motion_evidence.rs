@@ -97,8 +97,10 @@ impl Evidence {
     };
 }
 
-/// The evidence of a still pixel (stage 1) with phasors `z`, their Chebyshev quantities `c`
-/// and camera offsets `offsets`; none where `keep` is 0 or the weights are not finite.
+/// The evidence of a still pixel (stage 1, and a step's pixels at rest) with phasors `z`, their
+/// Chebyshev quantities `c` and camera offsets `offsets`, less what the pixel's own noise (at
+/// the basis's noise level; `gain2` as [`chebyshev3`] takes it) adds on average
+/// ([`MotionBasis::noise_bias`]); none where `keep` is 0 or the weights are not finite.
 #[inline(always)]
 pub(crate) fn evidence(
     basis: &MotionBasis,
@@ -106,9 +108,20 @@ pub(crate) fn evidence(
     c: &Chebyshev3,
     offsets: [f32; 3],
     keep: f32,
+    gain2: (f32, f32, f32),
 ) -> Evidence {
-    let dz = basis.slopes_at_rest(z, basis.lit_offsets(offsets));
-    evidence_with(z, dz, c, keep, (0.0, 0.0))
+    let noise2 = basis.bias_noise2;
+    let lit = basis.lit_offsets(offsets);
+    let dz = basis.slopes_at_rest(z, lit);
+    let mut ev = evidence_with(z, dz, c, keep, (0.0, 0.0));
+    let (bu, bk) = basis.noise_bias(z, lit, gain2);
+    let w = noise2 * keep / c.var_over_noise;
+    let (bu, bk) = (w * bu, w * bk);
+    if bu.is_finite() & bk.is_finite() {
+        ev.ue -= bu;
+        ev.ke -= bk;
+    }
+    ev
 }
 
 /// The evidence of a pixel whose phasors `z`, corrected at `(u, κ) = at`, move by `dz` per

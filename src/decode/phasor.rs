@@ -377,7 +377,7 @@ fn derive_chebyshev3(
                 am2[x] = c.amplitude[2];
                 let signal = light_reasons(&c, min_amplitude, saturated[x]);
                 let keep = if signal == 0.0 { 1.0 } else { 0.0 };
-                let ev = motion::evidence(basis, z, &c, [co0[x], co1[x], co2[x]], keep);
+                let ev = motion::evidence(basis, z, &c, [co0[x], co1[x], co2[x]], keep, gain2);
                 re[x] = ev.uu;
                 im[x] = ev.uk;
                 support[x] = ev.kk;

@@ -12,7 +12,13 @@ use tremorscan::rig::{GroundTruth, NoiseModel, RigConfig, SceneConfig, VirtualRi
 
 /// The paper rig at 640×400 with a still hand (no tremor) and the given noise.
 pub fn still_hand_rig(noise: NoiseModel) -> RigConfig {
-    let mut config = RigConfig::paper(640, 400).unwrap();
+    still_hand_rig_at(noise, 640, 400)
+}
+
+/// [`still_hand_rig`] with the camera binned to `width`×`height` instead of 640×400.
+#[allow(dead_code, reason = "each test binary uses its own helpers")]
+pub fn still_hand_rig_at(noise: NoiseModel, width: usize, height: usize) -> RigConfig {
+    let mut config = RigConfig::paper(width, height).unwrap();
     config.noise = noise;
     config.scene = SceneConfig {
         hand: config.scene.hand.map(|mut t| {

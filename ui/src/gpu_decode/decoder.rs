@@ -428,7 +428,7 @@ impl GpuDecoder {
             .as_ref()
             .context("the GPU decoder was set up without the motion model")?;
         let links = self.clock.advance(time_s, basis, params.check_order_jumps);
-        let words = motion::model_words(basis, params, links);
+        let words = motion::model_words(basis, params, self.width, links);
         self.queue
             .write_buffer(&self.model, 0, bytemuck::cast_slice(&words));
         let mut encoder = self
@@ -454,7 +454,7 @@ impl GpuDecoder {
         })();
         noise_readback.unmap();
         let measured = measured?;
-        let window = motion::window_words(basis, params, links, measured);
+        let window = motion::window_words(basis, params, self.width, links, measured);
         self.queue.write_buffer(
             &self.model,
             (motion::MODEL_WINDOW_OFFSET * 4) as u64,

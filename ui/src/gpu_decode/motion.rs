@@ -148,23 +148,28 @@ pub(super) fn model_off() -> [f32; MODEL_WORDS] {
     [0.0; MODEL_WORDS]
 }
 
-/// The model buffer of a motion window of `basis` with `params`, before its noise is known
-/// (the step constants at the configured noise; [`window_words`] replaces them).
+/// The model buffer of a motion window of `basis` with `params` in an image `width_px` wide,
+/// before its noise is known (the step constants at the configured noise; [`window_words`]
+/// replaces them).
 pub(super) fn model_words(
     basis: &MotionBasis,
     params: &DecodeParams,
+    width_px: usize,
     links: WindowLinks,
 ) -> [f32; MODEL_WORDS] {
     let mut words = [0.0; MODEL_WORDS];
     words[..MotionBasis::PACKED_WORDS].copy_from_slice(&basis.packed());
-    words[MODEL_WINDOW_OFFSET..].copy_from_slice(&window_words(basis, params, links, None));
+    words[MODEL_WINDOW_OFFSET..]
+        .copy_from_slice(&window_words(basis, params, width_px, links, None));
     words
 }
 
-/// The window's values (from `M_ON` on), with the noise the window's grid showed (`measured`).
+/// The window's values (from `M_ON` on), with the noise the window's grid showed (`measured`),
+/// in an image `width_px` wide.
 pub(super) fn window_words(
     basis: &MotionBasis,
     params: &DecodeParams,
+    width_px: usize,
     links: WindowLinks,
     measured: Option<f32>,
 ) -> [f32; MODEL_WORDS - MODEL_WINDOW_OFFSET] {
@@ -181,8 +186,8 @@ pub(super) fn window_words(
         step.shift_per_velocity_change,
         flag(links.consecutive),
         basis.max_velocity_px_per_s() * basis.frame_interval_s(),
-        params.motion.decay,
-        recursion_halo(params.motion.decay) as f32,
+        params.motion_decay_at(width_px),
+        recursion_halo(params.motion_decay_at(width_px)) as f32,
         flag(params.check_order_jumps),
     ]
 }

@@ -69,7 +69,7 @@ impl DecodeUniform {
             camera_noise_gray: params.camera_noise_gray,
             max_disagreement_chi2: params.max_disagreement_chi2,
             max_rounding_residual: params.max_rounding_residual,
-            decay: s.decay,
+            decay: params.unit_decay_at(width),
             edge_phase_rad: s.edge_phase_rad,
             edge_colour_ratio: s.edge_colour_ratio,
             edge_chromaticity: s.edge_chromaticity,
@@ -80,7 +80,7 @@ impl DecodeUniform {
             } else {
                 0.0
             },
-            halo: recursion_halo(s.decay),
+            halo: recursion_halo(params.unit_decay_at(width)),
         }
     }
 }
