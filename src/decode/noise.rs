@@ -86,6 +86,24 @@ pub fn window_noise_samples<F: Borrow<Frame>>(
     saturation_level: u8,
     samples: &mut Vec<f32>,
 ) -> Option<NoiseResidual> {
+    window_noise_samples_every(
+        solver,
+        frames,
+        (min_amplitude, saturation_level),
+        GRID_STEP_PX,
+        samples,
+    )
+}
+
+/// [`window_noise_samples`] on a grid of `step_px` (at least 1) instead of [`GRID_STEP_PX`].
+pub fn window_noise_samples_every<F: Borrow<Frame>>(
+    solver: &WindowSolver,
+    frames: &[F],
+    (min_amplitude, saturation_level): (f32, u8),
+    step_px: usize,
+    samples: &mut Vec<f32>,
+) -> Option<NoiseResidual> {
+    let step_px = step_px.max(1);
     let residual = noise_residual(solver)?;
     let first: &Frame = frames.first()?.borrow();
     let (w, h) = (first.width, first.height);
@@ -105,8 +123,8 @@ pub fn window_noise_samples<F: Borrow<Frame>>(
     let mut obs = vec![0.0f32; n_obs];
     let mut u = vec![0.0f32; n_u];
     let mut z = vec![(0.0f32, 0.0f32); solver.frequencies.len()];
-    for y in (GRID_STEP_PX / 2..h).step_by(GRID_STEP_PX) {
-        for x in (GRID_STEP_PX / 2..w).step_by(GRID_STEP_PX) {
+    for y in (step_px / 2..h).step_by(step_px) {
+        for x in (step_px / 2..w).step_by(step_px) {
             if !observe(solver, frames, y * w + x, saturation_level, &mut obs) {
                 continue;
             }
