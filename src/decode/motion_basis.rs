@@ -129,11 +129,11 @@ impl MotionBasis {
 
     /// The basis with its evidence at rest corrected for a camera noise of `noise_gray`
     /// ([`Self::noise_bias`]). The decoders give it the noise the window's own frames show
-    /// ([`super::noise::window_noise_samples`] on its sparse grid), else the configured level:
+    /// ([`super::noise::window_noise_samples`] on its sparse grid), at most the configured level:
     /// the correction grows with the noise variance, and the configured level, set high to keep
     /// the tests conservative, over-corrects (the rig's default camera shows 1.3 gray levels
-    /// against the default setting of 2; corrected for 2, the outlines behind a soft lens kept
-    /// twice the points more than 2 mm off).
+    /// against the default setting of 2; corrected for 2, the still hand behind a soft lens got
+    /// a point more than 2 mm off inside its outline, where none was before).
     pub fn with_noise_gray(mut self, noise_gray: f32) -> Self {
         let noise2 = noise_gray * noise_gray;
         self.bias_noise2 = if noise2.is_finite() { noise2 } else { 0.0 };

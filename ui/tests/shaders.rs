@@ -134,7 +134,8 @@ fn the_decode_shader_matches_its_rust_struct() {
     );
     // The model buffer: the library's packed basis, then the window's values from M_ON on.
     let packed = tremorscan::decode::MotionBasis::PACKED_WORDS;
-    assert_eq!(constant("M_MIN_SHIFT"), packed - 1);
+    assert_eq!(constant("M_MIN_SHIFT"), packed - 2);
+    assert_eq!(constant("M_BIAS_NOISE2"), packed - 1);
     assert_eq!(constant("M_ON"), MODEL_WINDOW_OFFSET);
     assert_eq!(constant("M_CHECK_TIME"), MODEL_WINDOW_OFFSET + 11);
 }
