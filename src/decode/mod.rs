@@ -29,6 +29,7 @@ pub mod fastmath;
 mod method;
 pub mod motion;
 mod motion_basis;
+pub use motion_basis::motion_basis;
 mod motion_blocks;
 mod motion_correct;
 mod motion_evidence;
@@ -370,51 +371,6 @@ pub fn decode_window<F: Borrow<Frame> + Sync>(
     phasor::solve_phasors(solver, frames, params, chebyshev, basis.as_ref(), out);
     finish_window(solver, params, chebyshev_n, basis.as_ref(), started, out);
     Ok(())
-}
-
-/// Grid pixels the motion model's noise level is measured on per window (about; the image's
-/// lit share of them count): the median of a thousand samples gives the noise to a few per
-/// cent, at a fixed cost whatever the image size.
-const BIAS_NOISE_SAMPLES: f64 = 1024.0;
-
-/// The window's motion model, when `params` ask for one and the window can take it (a CPS-RGB
-/// window unwrapped by the Chebyshev relation), with its evidence at rest corrected for the
-/// noise the window's frames show.
-pub fn motion_basis<F: Borrow<Frame>>(
-    solver: &WindowSolver,
-    frames: &[F],
-    params: &DecodeParams,
-) -> Option<motion::MotionBasis> {
-    if params.motion.model != MotionModel::Linear
-        || params.motion.iterations == 0
-        || params.unwrap == UnwrapMethod::Temporal
-        || frames.len() != 3
-    {
-        return None;
-    }
-    let times = [0, 1, 2].map(|k| frames[k].borrow().time_s);
-    let basis = motion::MotionBasis::new(solver, times)?;
-    // The evidence at rest is corrected for the noise the window's frames show (on a sparse
-    // grid of about BIAS_NOISE_SAMPLES pixels, before stage 1), at most the configured level:
-    // the residual also grows with motion and with anything else that breaks the Chebyshev
-    // relation (corrected at the level a window with a corrupted frame showed, 0.84 % of the
-    // image took a wrong fringe order, `tests/validity.rs`), so it bounds the camera's noise
-    // from above.
-    let first = frames.first()?.borrow();
-    let pixels = (first.width * first.height) as f64;
-    // In 7..=√pixels, so the cast is exact.
-    let step_px = (pixels / BIAS_NOISE_SAMPLES).sqrt().round().max(7.0) as usize;
-    let mut samples = Vec::with_capacity(BIAS_NOISE_SAMPLES as usize * 2);
-    let measured = noise::window_noise_samples_every(
-        solver,
-        frames,
-        (params.min_amplitude, params.saturation_level),
-        step_px,
-        &mut samples,
-    )
-    .and_then(|_| noise::noise_from_samples(&mut samples));
-    let configured = params.camera_noise_gray;
-    Some(basis.with_noise_gray(measured.map_or(configured, |m| m.min(configured))))
 }
 
 /// How many frames each decoded coordinate of a stream of `sequence` averages, which the tremor

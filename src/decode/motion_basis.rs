@@ -8,9 +8,16 @@
 //! R(gτ_k)`, `N(g) = Σ_k τ_k·L_k·d_kᵀ·R(gτ_k)`, `v = Σ_k τ_k·L_k` (derivation in
 //! [`super::motion`]). [`MotionBasis`] holds the per-window constants, built once per window
 //! from its frame times; its methods evaluate the model and its slopes per pixel.
+//!
+//! [`motion_basis`] builds it for a window when the settings ask for the model, with the noise
+//! the window's frames show (measured on a sparse grid before stage 1), for which
+//! [`MotionBasis::noise_bias`] takes out of a still pixel's evidence the part its own noise
+//! puts there.
 
 use super::fastmath::sin_cos_small;
-use super::WindowSolver;
+use super::{noise, DecodeParams, MotionModel, UnwrapMethod, WindowSolver};
+use crate::frame::Frame;
+use std::borrow::Borrow;
 
 /// Largest phase turn of one frame against the window's centre that the model corrects, rad.
 /// At 2π/3 the three-step window cannot see the fringe at all (`M` is singular); a turn of 1
@@ -128,7 +135,7 @@ impl MotionBasis {
     }
 
     /// The basis with its evidence at rest corrected for a camera noise of `noise_gray`
-    /// ([`Self::noise_bias`]). The decoders give it the noise the window's own frames show
+    /// (`noise_bias`). The decoders give it the noise the window's own frames show
     /// ([`super::noise::window_noise_samples`] on its sparse grid), at most the configured level:
     /// the correction grows with the noise variance, and the configured level, set high to keep
     /// the tests conservative, over-corrects (the rig's default camera shows 1.3 gray levels
@@ -351,6 +358,51 @@ impl MotionBasis {
             self.mix_of_slot[2][j],
         ]
     }
+}
+
+/// Grid pixels the motion model's noise level is measured on per window (about; the image's
+/// lit share of them count): the median of a thousand samples gives the noise to a few per
+/// cent, at a fixed cost whatever the image size.
+const BIAS_NOISE_SAMPLES: f64 = 1024.0;
+
+/// The window's motion model, when `params` ask for one and the window can take it (a CPS-RGB
+/// window unwrapped by the Chebyshev relation), with its evidence at rest corrected for the
+/// noise the window's frames show.
+pub fn motion_basis<F: Borrow<Frame>>(
+    solver: &WindowSolver,
+    frames: &[F],
+    params: &DecodeParams,
+) -> Option<MotionBasis> {
+    if params.motion.model != MotionModel::Linear
+        || params.motion.iterations == 0
+        || params.unwrap == UnwrapMethod::Temporal
+        || frames.len() != 3
+    {
+        return None;
+    }
+    let times = [0, 1, 2].map(|k| frames[k].borrow().time_s);
+    let basis = MotionBasis::new(solver, times)?;
+    // The evidence at rest is corrected for the noise the window's frames show (on a sparse
+    // grid of about BIAS_NOISE_SAMPLES pixels, before stage 1), at most the configured level:
+    // the residual also grows with motion and with anything else that breaks the Chebyshev
+    // relation (corrected at the level a window with a corrupted frame showed, 0.84 % of the
+    // image took a wrong fringe order, `tests/validity.rs`), so it bounds the camera's noise
+    // from above.
+    let first = frames.first()?.borrow();
+    let pixels = (first.width * first.height) as f64;
+    // In 7..=√pixels, so the cast is exact.
+    let step_px = (pixels / BIAS_NOISE_SAMPLES).sqrt().round().max(7.0) as usize;
+    let mut samples = Vec::with_capacity(BIAS_NOISE_SAMPLES as usize * 2);
+    let measured = noise::window_noise_samples_every(
+        solver,
+        frames,
+        (params.min_amplitude, params.saturation_level),
+        step_px,
+        &mut samples,
+    )
+    .and_then(|_| noise::noise_from_samples(&mut samples));
+    let configured = params.camera_noise_gray;
+    Some(basis.with_noise_gray(measured.map_or(configured, |m| m.min(configured))))
 }
 
 #[cfg(test)]
