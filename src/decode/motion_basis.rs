@@ -390,7 +390,7 @@ pub fn motion_basis<F: Borrow<Frame>>(
     // from above.
     let first = frames.first()?.borrow();
     let pixels = (first.width * first.height) as f64;
-    // In 7..=√pixels, so the cast is exact.
+    // A whole number of at least 7, so the cast is exact.
     let step_px = (pixels / BIAS_NOISE_SAMPLES).sqrt().round().max(7.0) as usize;
     let mut samples = Vec::with_capacity(BIAS_NOISE_SAMPLES as usize * 2);
     let measured = noise::window_noise_samples_every(

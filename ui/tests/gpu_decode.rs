@@ -73,8 +73,8 @@ fn compare(cpu: &DecodeOutput, gpu: &DecodeOutput, motion: bool) {
         })
     };
     // With the model, a pixel valid on both whose amplitudes differ beyond rounding was
-    // corrected on one side and not the other: a patch's significance within rounding of its
-    // threshold in an earlier step. Measured once (since the evidence at rest lost its noise
+    // corrected on one side and not the other, which we take to be a patch's significance
+    // within rounding of its threshold in an earlier step (not traced on the GPU). Measured once (since the evidence at rest lost its noise
     // bias, stop 43): one pixel of 256,000, 0.033 px and 2.7 % of its amplitude apart, both
     // ending at rest. Counted with the validity differences below, not as a coordinate error.
     let mut decision_differs = 0usize;
