@@ -184,7 +184,7 @@ struct StripStep {
 }
 
 /// Vertical recursion over whole columns, exactly, in parallel strips of columns (the plain
-/// pass's blocks of rows warm up on 48 rows each, exact only to a decay of 0.7): each strip
+/// pass's blocks of rows warm up on their decay's [`super::smooth::recursion_halo`] instead): each strip
 /// runs down its columns (`F[y] = v[y] + carry(F[y − 1])`, written to the planes) and back up
 /// (`B[y] = v[y] + carry(B[y + 1])`, adding `B − v`), reading each row's segment of the
 /// horizontal pass's output once per direction. `step(state, v, links, at)` sets the state to

@@ -15,9 +15,9 @@
 //! `DecodeOutput`. A new decoder starts afresh, and the output is told to forget its own (the CPU
 //! taking over after a failure must not trust planes the GPU never wrote).
 
-use super::params::recursion_halo;
 use tremorscan::decode::motion::{consecutive_since, StepConstants};
 use tremorscan::decode::motion_noise::{noise_from_scaled_residuals, significance_noise_gray};
+use tremorscan::decode::smooth::recursion_halo;
 use tremorscan::decode::{motion_noise, DecodeParams, MotionBasis};
 
 /// Words of the shader's model buffer (`M` there).

@@ -2,6 +2,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use std::f32::consts::PI;
+use tremorscan::decode::smooth::recursion_halo;
 use tremorscan::decode::{DecodeParams, WindowSolver};
 
 /// `Params` of `shaders/decode.wgsl`, byte for byte (112 bytes; the vec3 members are 16-byte
@@ -82,40 +83,5 @@ impl DecodeUniform {
             },
             halo: recursion_halo(params.unit_decay_at(width)),
         }
-    }
-}
-
-/// Pixels a recursion of `decay` must warm up on before its sum is that of the whole line to
-/// f32 resolution: the smallest `k` with `decay^k < 10⁻⁸` (52 at 0.7, 83 at 0.8, 114 at 0.85),
-/// or a whole image's length for a decay of 1 or more.
-pub(super) fn recursion_halo(decay: f32) -> u32 {
-    const WHOLE_LINE: u32 = 1 << 16;
-    if decay.is_nan() || decay <= 0.0 {
-        return 0;
-    }
-    if decay >= 1.0 {
-        return WHOLE_LINE;
-    }
-    let k = (1e-8f64.ln() / f64::from(decay).ln()).ceil();
-    // In 0..=WHOLE_LINE, so the cast is exact.
-    k.min(f64::from(WHOLE_LINE)) as u32
-}
-
-#[cfg(test)]
-mod tests {
-    use super::recursion_halo;
-
-    #[test]
-    fn the_halo_reaches_below_f32_resolution() {
-        assert_eq!(recursion_halo(0.7), 52);
-        assert_eq!(recursion_halo(0.8), 83);
-        assert_eq!(recursion_halo(0.85), 114);
-        for decay in [0.5f32, 0.7, 0.85, 0.95, 0.99] {
-            let k = recursion_halo(decay);
-            assert!(decay.powi(k as i32) < 1e-8, "{decay}");
-            assert!(decay.powi(k as i32 - 1) >= 1e-8, "{decay}");
-        }
-        assert_eq!(recursion_halo(0.0), 0);
-        assert_eq!(recursion_halo(1.0), 1 << 16);
     }
 }
