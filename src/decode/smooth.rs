@@ -195,11 +195,13 @@ pub fn recursion_halo(decay: f32) -> u32 {
     k.min(f64::from(WHOLE_LINE)) as u32
 }
 
-/// Rows per vertical block for a recursion of `decay`: twice its halo, and at least
-/// [`VERTICAL_BLOCK_ROWS`], so the warm-up rows stay about as many as the block's own whatever
-/// the reach (at 1920×1200 the decays are raised to the power 1/3 and the halos triple).
-fn vertical_block_rows(decay: f32) -> usize {
-    (2 * recursion_halo(decay) as usize).max(VERTICAL_BLOCK_ROWS)
+/// Rows per vertical block: one block per thread, and at least [`VERTICAL_BLOCK_ROWS`]. Every
+/// block warms up on [`recursion_halo`] rows beyond each of its ends, whatever its size, so the
+/// fewest blocks that keep the threads busy do the least warm-up (at 1920×1200 the decays are
+/// raised to the power 1/3 and the halos triple, to 155 and 247 rows).
+fn vertical_block_rows(h: usize) -> usize {
+    h.div_ceil(rayon::current_num_threads().max(1))
+        .max(VERTICAL_BLOCK_ROWS)
 }
 
 /// Vertical recursion, in parallel blocks of rows. Each block warms its state up on the halo rows
@@ -211,7 +213,7 @@ fn vertical_pass(p: &mut Planes<'_>, decay: f32) {
     // The horizontal pass's output, read while the blocks write their rows of the final planes.
     let orig: &[f32] = &p.tmp[..3 * n];
     let connect = p.connect;
-    let block_rows = vertical_block_rows(decay);
+    let block_rows = vertical_block_rows(h);
     let halo = recursion_halo(decay) as usize;
     let block_px = block_rows * w;
     let [a, b, c] = &mut p.planes;
