@@ -56,6 +56,12 @@ fn gpu_backend(rig: &VirtualRig) -> GpuBackend {
     GpuBackend::new(ctx, &rig.sequence, &still()).unwrap()
 }
 
+/// The coordinate shift at which the motion model starts to take a pixel's acceleration,
+/// projector px (`decode::motion::MIN_ACCELERATION_SHIFT_PX`): a hard threshold, so a pixel whose
+/// shift lies within rounding of it may take the acceleration on one side and not the other, and
+/// its coordinates then differ by this much.
+const ACCELERATION_THRESHOLD_PX: f32 = 0.05;
+
 /// The differences of one window's GPU result from the CPU's, asserted within bounds.
 /// `motion`: the decode had the motion model.
 fn compare(cpu: &DecodeOutput, gpu: &DecodeOutput, motion: bool) {
@@ -86,6 +92,14 @@ fn compare(cpu: &DecodeOutput, gpu: &DecodeOutput, motion: bool) {
             continue;
         }
         if motion && c.is_finite() && level_differs(p) {
+            decision_differs += 1;
+            continue;
+        }
+        // Both valid, the levels alike, the coordinates apart by the acceleration's threshold
+        // shift: the acceleration taken on one side only (measured once, since the CPU's
+        // vertical sums became exact at stop 44: one pixel of 256,000, 0.05002 px apart, the
+        // CPU's acceleration 0 there where its truncated sums had taken 2,196 px/s²).
+        if motion && ((c - g).abs() - ACCELERATION_THRESHOLD_PX).abs() <= 1e-3 {
             decision_differs += 1;
             continue;
         }
@@ -242,6 +256,20 @@ fn the_gpu_models_motion_inside_the_window_as_the_cpu_does() {
     config.noise = NoiseModel::gaussian(4.0);
     config.scene.hand.as_mut().unwrap().tip_amplitude_mm = 10.0;
     compare_rig_stream(&rig_with(config), 4, 5, DecodeParams::default());
+}
+
+#[test]
+fn the_gpu_and_the_cpu_agree_where_the_sums_reach_further() {
+    // Above 640 px wide the edge-aware sums' decays are raised to the power 640/width
+    // (`DecodeParams::reach_scale`), and the warm-up their recursions need grows with them: at
+    // 960 px the velocity's 0.8 becomes 0.862, whose halo is 124 rows. The CPU's vertical blocks
+    // warmed up on 48 rows whatever the decay until stop 44, dropping up to 0.862⁴⁸ ≈ 8·10⁻⁴ of a
+    // sum at every block boundary where the GPU's segments were exact.
+    let mut config = RigConfig::paper(960, 600).unwrap();
+    let hand = config.scene.hand.as_mut().unwrap();
+    hand.tip_amplitude_mm = 10.0;
+    hand.sway_amplitude_mm = 4.0;
+    compare_rig_stream(&rig_with(config), 0, 4, DecodeParams::default());
 }
 
 #[test]
