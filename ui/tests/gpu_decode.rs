@@ -243,12 +243,7 @@ fn the_gpu_models_motion_inside_the_window_as_the_cpu_does() {
     // window, the acceleration from the previous window, the temporal references) on a hand in
     // a 10 mm tremor swaying 4 mm sideways, over six windows, so that the links between windows
     // are compared too: the stream's state lives on the GPU between windows.
-    let mut config = RigConfig::paper(640, 400).unwrap();
-    let hand = config.scene.hand.as_mut().unwrap();
-    hand.tip_amplitude_mm = 10.0;
-    hand.sway_amplitude_mm = 4.0;
-    let rig = rig_with(config);
-    compare_rig_stream(&rig, 0, 8, DecodeParams::default());
+    compare_rig_stream(&swaying_hand(640, 400), 0, 8, DecodeParams::default());
     // A size that is no multiple of the workgroups (nor of the noise grid's step), a stream
     // starting on another pattern, and a camera noisier than the decode is told (σ = 4 against
     // 2), so that the significance test takes the level the window's grid shows.
@@ -265,11 +260,16 @@ fn the_gpu_and_the_cpu_agree_where_the_sums_reach_further() {
     // 960 px the velocity's 0.8 becomes 0.862, whose halo is 124 rows. The CPU's vertical blocks
     // warmed up on 48 rows whatever the decay until stop 44, dropping up to 0.862⁴⁸ ≈ 8·10⁻⁴ of a
     // sum at every block boundary where the GPU's segments were exact.
-    let mut config = RigConfig::paper(960, 600).unwrap();
+    compare_rig_stream(&swaying_hand(960, 600), 0, 4, DecodeParams::default());
+}
+
+/// The rig's hand in a 10 mm tremor at the fingertip, swaying 4 mm sideways.
+fn swaying_hand(width: usize, height: usize) -> VirtualRig {
+    let mut config = RigConfig::paper(width, height).unwrap();
     let hand = config.scene.hand.as_mut().unwrap();
     hand.tip_amplitude_mm = 10.0;
     hand.sway_amplitude_mm = 4.0;
-    compare_rig_stream(&rig_with(config), 0, 4, DecodeParams::default());
+    rig_with(config)
 }
 
 #[test]
