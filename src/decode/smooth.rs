@@ -195,13 +195,18 @@ pub fn recursion_halo(decay: f32) -> u32 {
     k.min(f64::from(WHOLE_LINE)) as u32
 }
 
-/// Rows per vertical block: one block per thread, and at least [`VERTICAL_BLOCK_ROWS`]. Every
-/// block warms up on [`recursion_halo`] rows beyond each of its ends, whatever its size, so the
-/// fewest blocks that keep the threads busy do the least warm-up (at 1920×1200 the decays are
-/// raised to the power 1/3 and the halos triple, to 155 and 247 rows).
-fn vertical_block_rows(h: usize) -> usize {
-    h.div_ceil(rayon::current_num_threads().max(1))
-        .max(VERTICAL_BLOCK_ROWS)
+/// Rows per vertical block for a recursion of `decay` over `h` rows: two blocks, one for each
+/// of the two cores the decode is built for (issue 23), where each is at least as tall as the
+/// halo it warms up on (and [`VERTICAL_BLOCK_ROWS`]); else one. Every block warms up on
+/// [`recursion_halo`] rows beyond its inner end whatever its size, so more blocks would pay more
+/// warm-up for threads the target machine does not have (at 1920×1200 the decays are raised to
+/// the power 1/3 and the halos triple, to 155 and 247 rows). The layout depends on the image and
+/// the decay alone, not on the machine's threads, so a session decodes to the same bits
+/// everywhere.
+fn vertical_block_rows(h: usize, decay: f32) -> usize {
+    let least = (recursion_halo(decay) as usize).max(VERTICAL_BLOCK_ROWS);
+    let blocks = if h >= 2 * least { 2 } else { 1 };
+    h.div_ceil(blocks).max(1)
 }
 
 /// Vertical recursion, in parallel blocks of rows. Each block warms its state up on the halo rows
@@ -213,7 +218,7 @@ fn vertical_pass(p: &mut Planes<'_>, decay: f32) {
     // The horizontal pass's output, read while the blocks write their rows of the final planes.
     let orig: &[f32] = &p.tmp[..3 * n];
     let connect = p.connect;
-    let block_rows = vertical_block_rows(h);
+    let block_rows = vertical_block_rows(h, decay);
     let halo = recursion_halo(decay) as usize;
     let block_px = block_rows * w;
     let [a, b, c] = &mut p.planes;
@@ -510,7 +515,7 @@ mod tests {
 
     #[test]
     fn blocked_parallel_passes_match_the_plain_recursion() {
-        // 301 rows: several vertical blocks and a short last one; mostly connected, with random
+        // 301 rows: two vertical blocks, the last one shorter; mostly connected, with random
         // cuts in both directions.
         blocked_against_plain(37, 301, 0.7, 0.15);
     }
@@ -523,6 +528,22 @@ mod tests {
         for decay in [0.7f32.powf(1.0 / 3.0), 0.8f32.powf(1.0 / 3.0)] {
             blocked_against_plain(23, 1200, decay, 0.0);
         }
+    }
+
+    #[test]
+    fn vertical_blocks_are_two_where_the_halo_allows() {
+        // Two blocks at the rig's and the camera's sizes, for both filters' decays, whatever
+        // the machine's threads.
+        assert_eq!(vertical_block_rows(400, 0.7), 200);
+        assert_eq!(vertical_block_rows(400, 0.8), 200);
+        assert_eq!(vertical_block_rows(1200, 0.7f32.powf(1.0 / 3.0)), 600);
+        assert_eq!(vertical_block_rows(1200, 0.8f32.powf(1.0 / 3.0)), 600);
+        assert_eq!(vertical_block_rows(301, 0.7), 151);
+        // One where the image is shorter than two halos, or the decay reaches the whole
+        // column; never zero.
+        assert_eq!(vertical_block_rows(150, 0.8), 150);
+        assert_eq!(vertical_block_rows(4000, 1.0), 4000);
+        assert_eq!(vertical_block_rows(0, 0.7), 1);
     }
 
     #[test]
