@@ -440,9 +440,12 @@ fn motion_step(id: vec3<u32>, refine: bool, last: bool) {
             && (p.moving || (before & MOVING) != 0u)
             && ((before & KNOWN) != 0u)
             && (M[M_INV_SINCE] > 0.0)
-            && (abs(du) <= M[M_MAX_DU])
-            && (abs(du) * M[M_SHIFT_PER_DU] >= M[M_MIN_SHIFT]);
-        state[ACCELERATION * n + i] = select(0.0, du * M[M_INV_SINCE], accelerating);
+            && (abs(du) <= M[M_MAX_DU]);
+        // All from the smallest shift up, none below half of it, in proportion between (the
+        // CPU's `acceleration_onset`): no step in the coordinate at the threshold.
+        let half = 0.5 * M[M_MIN_SHIFT];
+        let onset = clamp((abs(du) * M[M_SHIFT_PER_DU] - half) / half, 0.0, 1.0);
+        state[ACCELERATION * n + i] = select(0.0, du * M[M_INV_SINCE] * onset, accelerating);
         state[PATCH_VELOCITY * n + i] = select(0.0, p.u, p.solvable);
         state[PATCH_BITS * n + i] = f32(select(0u, MOVING, p.moving) | select(0u, KNOWN, p.solvable));
     }

@@ -96,13 +96,27 @@ pub(super) const MOTION_SIGNIFICANCE: f32 = 27.6;
 const PRIOR_VELOCITY_PX_PER_S: f32 = 400.0;
 const PRIOR_BRIGHTNESS_RATE_PER_S: f32 = 20.0;
 /// Smallest shift of the window's mean coordinate from its centre coordinate (`a·mean(τ²)/2`,
-/// projector px) for which the acceleration is applied: below it the correction is within the
-/// noise of the coordinate, and a still surface keeps the still solution. (The velocity change
+/// projector px) from which the acceleration is applied in full (from half of it in part,
+/// [`acceleration_onset`]): below it the correction is within the noise of the coordinate, and a
+/// still surface keeps the still solution. (The velocity change
 /// is not tested against its own noise: consecutive windows share two frames, so the noise of
 /// the change is far below what two independent estimates would have, and at a 10 mm tremor a
 /// χ² test at 10⁻⁶ kept the acceleration at 9 % of the moving skin, removing a fifth of the
 /// bias instead of nine tenths.)
 pub(super) const MIN_ACCELERATION_SHIFT_PX: f32 = 0.05;
+
+/// The share of its acceleration a pixel takes, from the shift it makes (projector px): all
+/// from [`MIN_ACCELERATION_SHIFT_PX`] up, none below half of it, in proportion between, so that
+/// the coordinate has no step at the threshold. (With a hard threshold a shift that crossed it
+/// by a rounding error moved the coordinate by the whole 0.05 px: the CPU and the GPU once
+/// differed so on one pixel. On the 640×400 motion sweep's 2–20 mm rows the ramp changes no
+/// printed figure; one from the threshold to twice it raised the 10 mm RMS by 2 µm.)
+#[inline]
+pub(super) fn acceleration_onset(shift_px: f32) -> f32 {
+    let half = 0.5 * MIN_ACCELERATION_SHIFT_PX;
+    ((shift_px - half) / half).clamp(0.0, 1.0)
+}
+
 /// The fastest oscillation whose acceleration the model takes, Hz: a change of velocity
 /// between windows larger than a sinusoid at this frequency and the model's largest velocity
 /// can make is not motion of one surface (at an outline the pixel saw another surface in the
@@ -312,4 +326,32 @@ pub(super) fn split3(row: &mut [f32], w: usize) -> [&mut [f32]; 3] {
     let (a, rest) = row.split_at_mut(w);
     let (b, c) = rest.split_at_mut(w);
     [&mut a[..w], &mut b[..w], &mut c[..w]]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_acceleration_sets_in_without_a_step() {
+        assert_eq!(acceleration_onset(0.0), 0.0);
+        assert_eq!(acceleration_onset(0.5 * MIN_ACCELERATION_SHIFT_PX), 0.0);
+        assert_eq!(acceleration_onset(MIN_ACCELERATION_SHIFT_PX), 1.0);
+        assert_eq!(acceleration_onset(10.0), 1.0);
+        // The shift the pixel takes, onset × shift, grows by no more than three times the step
+        // (its slope, (2·shift − half)/half, is 3 at the threshold) on a fine grid through it:
+        // no jump.
+        let step_px = 1e-5;
+        let mut previous = 0.0f32;
+        for k in 0..20_000 {
+            let shift = k as f32 * step_px;
+            let taken = acceleration_onset(shift) * shift;
+            assert!(taken >= previous, "{shift}");
+            assert!(
+                taken - previous <= 3.0 * step_px + 1e-6,
+                "{shift}: {previous} → {taken}"
+            );
+            previous = taken;
+        }
+    }
 }

@@ -22,7 +22,7 @@
 
 use super::fastmath::{sin_cos_phase, whole_to_flags};
 use super::invalid;
-use super::motion::{StepKind, MIN_ACCELERATION_SHIFT_PX, MOTION_SIGNIFICANCE};
+use super::motion::{acceleration_onset, StepKind, MOTION_SIGNIFICANCE};
 use super::motion_basis::MotionBasis;
 use super::motion_evidence::{chebyshev3_of, evidence, inconsistent};
 use super::motion_moving::{copy_pixel, correct_gathered, Gathered};
@@ -284,10 +284,10 @@ fn still_pass<const REFINE: bool, const LAST: bool>(
             let accelerating = p.solvable
                 & (p.moving | (row.patch_moving[x] != 0))
                 & (step.inv_since > 0.0)
-                & (du.abs() <= step.max_velocity_change)
-                & (du.abs() * step.shift_per_velocity_change >= MIN_ACCELERATION_SHIFT_PX);
+                & (du.abs() <= step.max_velocity_change);
+            let onset = acceleration_onset(du.abs() * step.shift_per_velocity_change);
             row.acceleration[x] = if accelerating {
-                du * step.inv_since
+                du * step.inv_since * onset
             } else {
                 0.0
             };

@@ -56,12 +56,6 @@ fn gpu_backend(rig: &VirtualRig) -> GpuBackend {
     GpuBackend::new(ctx, &rig.sequence, &still()).unwrap()
 }
 
-/// The coordinate shift at which the motion model starts to take a pixel's acceleration,
-/// projector px (`decode::motion::MIN_ACCELERATION_SHIFT_PX`): a hard threshold, so a pixel whose
-/// shift lies within rounding of it may take the acceleration on one side and not the other, and
-/// its coordinates then differ by this much.
-const ACCELERATION_THRESHOLD_PX: f32 = 0.05;
-
 /// The differences of one window's GPU result from the CPU's, asserted within bounds.
 /// `motion`: the decode had the motion model.
 fn compare(cpu: &DecodeOutput, gpu: &DecodeOutput, motion: bool) {
@@ -92,14 +86,6 @@ fn compare(cpu: &DecodeOutput, gpu: &DecodeOutput, motion: bool) {
             continue;
         }
         if motion && c.is_finite() && level_differs(p) {
-            decision_differs += 1;
-            continue;
-        }
-        // Both valid, the levels alike, the coordinates apart by the acceleration's threshold
-        // shift: the acceleration taken on one side only (measured once, since the CPU's
-        // vertical sums became exact at stop 44: one pixel of 256,000, 0.05002 px apart, the
-        // CPU's acceleration 0 there where its truncated sums had taken 2,196 px/s²).
-        if motion && ((c - g).abs() - ACCELERATION_THRESHOLD_PX).abs() <= 1e-3 {
             decision_differs += 1;
             continue;
         }
