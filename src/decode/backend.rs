@@ -9,7 +9,9 @@
 //! The contract, what every backend fills for a window: `coordinate_px` (NaN where invalid),
 //! `invalid` (the [`super::invalid`] reason bits), `amplitude` and `colour` (row-planar, as
 //! [`DecodeOutput`] lays them out) and `timings`. The CPU backend also fills the intermediate
-//! planes (`phase_rad`, `coarse_px`); other backends may leave them as they were.
+//! planes (`phase_rad`, `coarse_px`) and the motion model's (`velocity_px_per_s`,
+//! `brightness_rate_per_s`, `acceleration_px_per_s2`); other backends may leave them as they
+//! were (the GPU's stay on the device).
 
 use super::WindowSolver;
 use super::{
