@@ -184,10 +184,10 @@ struct StripStep {
 }
 
 /// Vertical recursion over whole columns, exactly, in parallel strips of columns (the plain
-/// pass's blocks of rows warm up on their decay's [`super::smooth::recursion_halo`] instead): each strip
-/// runs down its columns (`F[y] = v[y] + carry(F[y − 1])`, written to the planes) and back up
-/// (`B[y] = v[y] + carry(B[y + 1])`, adding `B − v`), reading each row's segment of the
-/// horizontal pass's output once per direction. `step(state, v, links, at)` sets the state to
+/// pass's blocks of rows warm up on their decay's [`super::smooth::recursion_halo`] instead):
+/// each strip runs down its columns (`F[y] = v[y] + carry(F[y − 1])`, written to the planes)
+/// and back up (`B[y] = v[y] + carry(B[y + 1])`, adding `B − v`), reading each row's segment of
+/// the horizontal pass's output once per direction. `step(state, v, links, at)` sets the state to
 /// `v + carry(state)` across `links` (the DOWN bits between the two rows).
 fn vertical_strips<F>(p: &mut Planes<'_>, step: F)
 where
