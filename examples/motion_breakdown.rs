@@ -2,7 +2,8 @@
 //! --motion` (same rig, same protocol as `rig::motion_eval`) tallied by the true turn of the
 //! window's outer frames at the highest frequency, `θ = f·(x₂ − x₀)/2` (signed: positive is the
 //! side where the three-step window is singular at π/3), with the share kept, the gross errors,
-//! the RMS of the others and the flags of the refused pixels (a pixel may carry several).
+//! the RMS of the others, how often the coarse estimate was beyond rounding, and the flags of
+//! the refused pixels (a pixel may carry several).
 //!
 //! `cargo run --release -p tremorscan --example motion_breakdown -- AMPLITUDE_MM [sway] [FRAMES]`
 //!
@@ -10,9 +11,17 @@
 //! phasor's filter), `TRANSPORT=1` (carry it along the fine phase), `MIN_SUPPORT`,
 //! `MOTION_DECAY`, `ITERATIONS`, `MOTION_BLOCK` (the motion model's evidence summed over blocks
 //! of that many pixels square), `REACH` (the sums' reach scale, `DecodeParams::reach_scale`;
-//! the decays are stated at 640 px wide), `WIDTH` and `HEIGHT` (640×400 by default); `STILL=1` also
-//! prints, per window, the share of every lit pixel refused for each flag.
+//! the decays are stated at 640 px wide), `EDGE_PHASE`, `EDGE_COLOUR` and `EDGE_CHROMA` (the
+//! edge-aware filters' links, `SmoothingParams`), `MOTION_OFF=1` (the paper's still window),
+//! `WIDTH` and `HEIGHT` (640×400 by default); for the rig, `SWAY_MM` and `ROLL_DEG` (the
+//! parts of `sway`, 4 mm and 3° by default) and `TEXTURE` (the skin's texture contrast).
+//! `STILL=1` also prints, per window, the share of every lit pixel refused for each flag.
+//! `BY_OUTLINE=1` tallies by the distance to the nearest pixel that is not skin in one of the
+//! window's frames instead of by turn, and `ALL_SKIN=1` counts the still skin too. The
+//! `coarse ≥ ½` column is the share whose coarse coordinate (the smoothed unit phase) is half a
+//! fringe period or more from the truth, where no rounding can find the right order.
 
+use std::f32::consts::TAU;
 use tremorscan::decode::{invalid, DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::rig::motion_eval::{GROSS_MM, MOVING_MM, OUTLINE_MARGIN_PX};
 use tremorscan::rig::{GroundTruth, RigConfig, VirtualRig};
@@ -38,6 +47,9 @@ struct Bin {
     valid: usize,
     gross: usize,
     sum2_mm2: f64,
+    /// Counted pixels whose coarse coordinate is half a fringe period or more from the truth
+    /// (or missing): no rounding can give them the right order.
+    coarse_off: usize,
     flags: [usize; 9],
 }
 
@@ -54,13 +66,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .and_then(|v| v.parse().ok())
             .unwrap_or(default)
     };
+    let env_f64 = |name: &str| std::env::var(name).ok().and_then(|v| v.parse::<f64>().ok());
     let mut config = RigConfig::paper(size("WIDTH", 640), size("HEIGHT", 400))?;
     if let Some(t) = config.scene.hand.as_mut() {
         t.tip_amplitude_mm = amplitude_mm;
         if sway {
-            t.sway_amplitude_mm = 4.0;
-            t.roll_amplitude_deg = 3.0;
+            t.sway_amplitude_mm = env_f64("SWAY_MM").unwrap_or(4.0);
+            t.roll_amplitude_deg = env_f64("ROLL_DEG").unwrap_or(3.0);
         }
+    }
+    if let Some(c) = env_f64("TEXTURE") {
+        config.scene.skin_texture_contrast = c;
     }
     let seq = config.default_sequence()?;
     let rig = VirtualRig::new(config, seq)?;
@@ -80,9 +96,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         params.motion.decay = v;
     }
     params.reach_scale = env("REACH");
+    if let Some(v) = env("EDGE_PHASE") {
+        params.smoothing.edge_phase_rad = v;
+    }
+    if let Some(v) = env("EDGE_COLOUR") {
+        params.smoothing.edge_colour_ratio = v;
+    }
+    if let Some(v) = env("EDGE_CHROMA") {
+        params.smoothing.edge_chromaticity = v;
+    }
     params.smoothing.transport = std::env::var("TRANSPORT").is_ok();
     if let Some(v) = env("MIN_SUPPORT") {
         params.smoothing.min_support = v;
+    }
+    if std::env::var("MOTION_OFF").is_ok() {
+        params.motion = tremorscan::decode::MotionParams::off();
     }
     if let Some(v) = env("ITERATIONS") {
         params.motion.iterations = v as u32;
@@ -95,6 +123,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut truths: [GroundTruth; 3] = Default::default();
     let mut cloud = PointCloud::default();
     let mut bins = [Bin::default(); BINS];
+    let by_outline = std::env::var("BY_OUTLINE").is_ok();
+    let all_skin = std::env::var("ALL_SKIN").is_ok();
     for i in 0..frames {
         truths.rotate_left(1);
         rig.render(i, &mut frame, Some(&mut truths[2]))?;
@@ -146,14 +176,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let d = [0, 1, 2].map(|k| truths[k].depth_mm[p]);
                 let lo = d.iter().copied().fold(f32::INFINITY, f32::min);
                 let hi = d.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-                if hi - lo <= MOVING_MM {
+                if hi - lo <= MOVING_MM && !all_skin {
                     continue;
                 }
                 let turn = f_max * (truths[2].coordinate_px[p] - truths[0].coordinate_px[p]) / 2.0;
                 let k = ((turn / BIN_RAD).floor() + (BINS / 2) as f32).clamp(0.0, (BINS - 1) as f32)
                     as usize;
+                let k = if by_outline {
+                    outline_distance_px(&truths, x, y, m + 1..m + BINS)
+                        .map_or(BINS - 1, |r| r - m - 1)
+                } else {
+                    k
+                };
                 let bin = &mut bins[k];
                 bin.counted += 1;
+                let coarse_periods = (out.coarse_px[p] - truths[1].coordinate_px[p]) * f_max / TAU;
+                if !(coarse_periods.abs() < 0.5) {
+                    bin.coarse_off += 1;
+                }
                 let z = cloud.point_in_camera_mm[p][2];
                 if z.is_finite() {
                     bin.valid += 1;
@@ -186,24 +226,42 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "{amplitude_mm} mm{}, {frames} frames, {total} moving px",
         if sway { " with sway" } else { "" }
     );
-    print!("| turn rad | share | kept | gross | RMS mm |");
+    let label = if by_outline {
+        "px from outline"
+    } else {
+        "turn rad"
+    };
+    print!("| {label} | share | kept | gross | RMS mm | coarse ≥ ½ |");
     for (_, name) in FLAGS {
         print!(" {name} |");
     }
     println!();
-    println!("|---|---:|---:|---:|---:|{}", "---:|".repeat(FLAGS.len()));
+    println!(
+        "|---|---:|---:|---:|---:|---:|{}",
+        "---:|".repeat(FLAGS.len())
+    );
     for (k, b) in bins.iter().enumerate() {
         if b.counted == 0 {
             continue;
         }
-        let lo = (k as f32 - (BINS / 2) as f32) * BIN_RAD;
+        let row = if by_outline {
+            let r = k + OUTLINE_MARGIN_PX + 1;
+            if k + 1 == BINS {
+                format!("≥ {r}")
+            } else {
+                format!("{r}")
+            }
+        } else {
+            let lo = (k as f32 - (BINS / 2) as f32) * BIN_RAD;
+            format!("{lo:+.1}..{:+.1}", lo + BIN_RAD)
+        };
         print!(
-            "| {lo:+.1}..{:+.1} | {} % | {} % | {} % | {} |",
-            lo + BIN_RAD,
+            "| {row} | {} % | {} % | {} % | {} | {} % |",
             share(b.counted, total, 2),
             share(b.valid, b.counted, 1),
             share(b.gross, b.counted, 2),
-            rms(b.sum2_mm2, b.valid - b.gross)
+            rms(b.sum2_mm2, b.valid - b.gross),
+            share(b.coarse_off, b.counted, 1)
         );
         for v in b.flags {
             print!(" {} |", share(v, b.counted, 1));
@@ -211,6 +269,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!();
     }
     Ok(())
+}
+
+/// The Chebyshev distance from pixel `(x, y)` to the nearest pixel that is not skin in one of
+/// the window's frames, searched over `radii` (the first radius whose square ring holds one),
+/// or `None` beyond them.
+fn outline_distance_px(
+    truths: &[GroundTruth; 3],
+    x: usize,
+    y: usize,
+    radii: std::ops::Range<usize>,
+) -> Option<usize> {
+    let (w, h) = (truths[0].width, truths[0].height);
+    let skin = |xx: usize, yy: usize| {
+        truths
+            .iter()
+            .all(|t| t.surface[yy * w + xx] == tremorscan::rig::truth::surface::SKIN)
+    };
+    radii.into_iter().find(|&r| {
+        let (x0, x1) = (x.saturating_sub(r), (x + r).min(w - 1));
+        let (y0, y1) = (y.saturating_sub(r), (y + r).min(h - 1));
+        (x0..=x1).any(|xx| !skin(xx, y0) || !skin(xx, y1))
+            || (y0..=y1).any(|yy| !skin(x0, yy) || !skin(x1, yy))
+    })
 }
 
 /// `part` as a percentage of `whole` with `digits` decimals, or "–" when `whole` is empty.
