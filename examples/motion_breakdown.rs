@@ -191,7 +191,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let bin = &mut bins[k];
                 bin.counted += 1;
                 let coarse_periods = (out.coarse_px[p] - truths[1].coordinate_px[p]) * f_max / TAU;
-                if !(coarse_periods.abs() < 0.5) {
+                if coarse_periods.is_nan() || coarse_periods.abs() >= 0.5 {
                     bin.coarse_off += 1;
                 }
                 let z = cloud.point_in_camera_mm[p][2];
