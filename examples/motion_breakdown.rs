@@ -75,6 +75,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             t.roll_amplitude_deg = env_f64("ROLL_DEG").unwrap_or(3.0);
         }
     }
+    if let Some(c) = env_f64("PSF") {
+        config.camera_psf_sigma_px = c;
+    }
+    if let Some(c) = env_f64("SUBSURFACE") {
+        config.subsurface_sigma_px = c;
+    }
     if let Some(c) = env_f64("TEXTURE") {
         config.scene.skin_texture_contrast = c;
     }

@@ -42,6 +42,7 @@ mod phasor_blocks;
 pub mod reference;
 pub mod smooth;
 mod smooth_blocks;
+mod smooth_strips;
 mod smooth_transport;
 pub mod solver;
 mod temporal;
