@@ -14,7 +14,8 @@
 //! the decays are stated at 640 px wide), `EDGE_PHASE`, `EDGE_COLOUR` and `EDGE_CHROMA` (the
 //! edge-aware filters' links, `SmoothingParams`), `MOTION_OFF=1` (the paper's still window),
 //! `WIDTH` and `HEIGHT` (640×400 by default); for the rig, `SWAY_MM` and `ROLL_DEG` (the
-//! parts of `sway`, 4 mm and 3° by default) and `TEXTURE` (the skin's texture contrast).
+//! parts of `sway`, 4 mm and 3° by default), `TEXTURE` (the skin's texture contrast), `PSF`
+//! (the lens's σ, px) and `SUBSURFACE` (the skin's blur of the pattern, projector px).
 //! `STILL=1` also prints, per window, the share of every lit pixel refused for each flag.
 //! `BY_OUTLINE=1` tallies by the distance to the nearest pixel that is not skin in one of the
 //! window's frames instead of by turn, and `ALL_SKIN=1` counts the still skin too. The
