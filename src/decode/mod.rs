@@ -42,7 +42,6 @@ mod phasor_blocks;
 pub mod reference;
 pub mod smooth;
 mod smooth_blocks;
-mod smooth_strips;
 mod smooth_transport;
 pub mod solver;
 mod temporal;

@@ -8,7 +8,7 @@
 //! [`DecodeOutput::new`] and reused: no stage allocates per window.
 
 use super::smooth_blocks::BlockScratch;
-use super::{invalid, motion_noise, phasor, smooth_strips, WindowSolver, BAND_ROWS};
+use super::{invalid, motion_noise, phasor, smooth, WindowSolver, BAND_ROWS};
 
 /// Flags that say a pixel's motion was not measured: too little light, saturation, a residual
 /// the motion model does not explain, or too few connected neighbours for a patch. A chance
@@ -170,7 +170,7 @@ impl DecodeOutput {
             connect: vec![0; n],
             jump: vec![0; n],
             smooth_tmp: vec![0.0; 3 * n],
-            vertical_state: vec![0.0; smooth_strips::vertical_state_len(width)],
+            vertical_state: vec![0.0; 3 * width * height.div_ceil(smooth::VERTICAL_BLOCK_ROWS)],
             band_scratch: vec![0.0; bands * band_scratch_len],
             band_scratch_len,
             noise_scratch: Vec::with_capacity(n / (motion_noise::GRID_STEP_PX.pow(2)) + width),

@@ -16,7 +16,6 @@
 
 pub(crate) use super::connect::compute_connectivity;
 use super::connect::{DOWN, RIGHT};
-use super::smooth_strips::vertical_strips;
 use super::smooth_transport::{smooth_transported, Transport};
 use super::{DecodeOutput, SmoothingParams, BAND_ROWS};
 use rayon::prelude::*;
@@ -175,10 +174,14 @@ fn horizontal_pass(p: &mut Planes<'_>, decay: f32) {
         });
 }
 
+/// Rows of one vertical block at the least: the vertical recursion's state buffer holds one row
+/// of state per block of this many rows.
+pub(crate) const VERTICAL_BLOCK_ROWS: usize = 64;
+
 /// Pixels a recursion of `decay` must warm up on before its sum is that of the whole line to
 /// f32 resolution: the smallest `k` with `decay^k < 10⁻⁸` (52 at 0.7, 83 at 0.8, 114 at 0.85),
-/// or a whole image's length for a decay of 1 or more. The GPU's recursion segments warm up on
-/// this many pixels (the CPU's vertical pass runs down whole columns, [`super::smooth_strips`]).
+/// or a whole image's length for a decay of 1 or more. The CPU's vertical blocks and the GPU's
+/// recursion segments both warm up on this many pixels.
 pub fn recursion_halo(decay: f32) -> u32 {
     const WHOLE_LINE: u32 = 1 << 16;
     if decay.is_nan() || decay <= 0.0 {
@@ -192,31 +195,181 @@ pub fn recursion_halo(decay: f32) -> u32 {
     k.min(f64::from(WHOLE_LINE)) as u32
 }
 
-/// Vertical recursion over whole columns, exactly, in parallel strips of columns
-/// ([`super::smooth_strips`]).
-fn vertical_pass(p: &mut Planes<'_>, decay: f32) {
-    vertical_strips(p, |state, v, links, _| plain_step(state, v, links, decay));
+/// Rows per vertical block for a recursion of `decay` over `h` rows: two blocks, one for each
+/// of the two cores the decode is built for (issue 23), where each is at least as tall as the
+/// halo it warms up on (and [`VERTICAL_BLOCK_ROWS`]); else one. Every block warms up on
+/// [`recursion_halo`] rows beyond its inner end whatever its size, so more blocks would pay more
+/// warm-up for threads the target machine does not have (at 1920×1200 the decays are raised to
+/// the power 1/3 and the halos triple, to 155 and 247 rows). The layout depends on the image and
+/// the decay alone, not on the machine's threads, so a session decodes to the same bits
+/// everywhere.
+fn vertical_block_rows(h: usize, decay: f32) -> usize {
+    let least = (recursion_halo(decay) as usize).max(VERTICAL_BLOCK_ROWS);
+    let blocks = if h >= 2 * least { 2 } else { 1 };
+    h.div_ceil(blocks).max(1)
 }
 
-/// One vertical step of the state, in place: `s = v + g·s`, with `g = decay` where `links` has
-/// the DOWN bit (the link between the two rows) and `g = 0` (a fresh start) without it.
+/// Vertical recursion, in parallel blocks of rows. Each block warms its state up on the halo rows
+/// above (forward) and below (backward), reading the unmodified input copy.
+fn vertical_pass(p: &mut Planes<'_>, decay: f32) {
+    let w = p.w;
+    let h = p.h;
+    let n = w * h;
+    // The horizontal pass's output, read while the blocks write their rows of the final planes.
+    let orig: &[f32] = &p.tmp[..3 * n];
+    let connect = p.connect;
+    let block_rows = vertical_block_rows(h, decay);
+    let halo = recursion_halo(decay) as usize;
+    let block_px = block_rows * w;
+    let [a, b, c] = &mut p.planes;
+    a[..n]
+        .par_chunks_mut(block_px)
+        .zip(b[..n].par_chunks_mut(block_px))
+        .zip(c[..n].par_chunks_mut(block_px))
+        .zip(p.vertical_state.par_chunks_mut(3 * w))
+        .enumerate()
+        .for_each(|(block, (((re, im), support), state))| {
+            let first = block * block_rows;
+            let rows = re.len() / w;
+            let ctx = VerticalBlock {
+                halo,
+                orig,
+                connect,
+                w,
+                h,
+                n,
+                first,
+                rows,
+                decay,
+            };
+            vertical_block(&ctx, [re, im, support], state);
+        });
+}
+
+struct VerticalBlock<'a> {
+    /// Rows the recursion warms up on beyond the block's ends ([`recursion_halo`]).
+    halo: usize,
+    orig: &'a [f32],
+    connect: &'a [u8],
+    w: usize,
+    h: usize,
+    n: usize,
+    first: usize,
+    rows: usize,
+    decay: f32,
+}
+
+/// One step of the vertical recursion for three planes: `next = v + g·previous`, with
+/// `g = decay` where `links` has the DOWN bit, and `g = 0` (a fresh start) without links.
+#[inline(always)]
+fn step_rows(
+    next: [&mut [f32]; 3],
+    previous: [&[f32]; 3],
+    v: [&[f32]; 3],
+    links: Option<&[u8]>,
+    decay: f32,
+) {
+    let [n0, n1, n2] = next;
+    let [s0, s1, s2] = previous;
+    let [a0, a1, a2] = v;
+    match links {
+        Some(l) => {
+            for x in 0..n0.len() {
+                let g = if l[x] & DOWN != 0 { decay } else { 0.0 };
+                n0[x] = a0[x] + g * s0[x];
+                n1[x] = a1[x] + g * s1[x];
+                n2[x] = a2[x] + g * s2[x];
+            }
+        }
+        None => {
+            n0.copy_from_slice(a0);
+            n1.copy_from_slice(a1);
+            n2.copy_from_slice(a2);
+        }
+    }
+}
+
+/// [`step_rows`] with the state updated in place.
+#[inline(always)]
+fn step_state(state: [&mut [f32]; 3], v: [&[f32]; 3], links: Option<&[u8]>, decay: f32) {
+    let [s0, s1, s2] = state;
+    let [a0, a1, a2] = v;
+    match links {
+        Some(l) => {
+            for x in 0..s0.len() {
+                let g = if l[x] & DOWN != 0 { decay } else { 0.0 };
+                s0[x] = a0[x] + g * s0[x];
+                s1[x] = a1[x] + g * s1[x];
+                s2[x] = a2[x] + g * s2[x];
+            }
+        }
+        None => {
+            s0.copy_from_slice(a0);
+            s1.copy_from_slice(a1);
+            s2.copy_from_slice(a2);
+        }
+    }
+}
+
 #[multiversion::multiversion(targets(
     "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
     "x86_64+avx2+fma",
     "x86_64+sse4.1"
 ))]
-fn plain_step(state: [&mut [f32]; 3], v: [&[f32]; 3], links: &[u8], decay: f32) {
-    let [s0, s1, s2] = state;
-    let [a0, a1, a2] = v;
-    // Every slice cut to one length, so that indexing needs no checks and the loop vectorises.
-    let w = s0.len();
-    let (s0, s1, s2) = (&mut s0[..w], &mut s1[..w], &mut s2[..w]);
-    let (a0, a1, a2, links) = (&a0[..w], &a1[..w], &a2[..w], &links[..w]);
-    for x in 0..w {
-        let g = if links[x] & DOWN != 0 { decay } else { 0.0 };
-        s0[x] = a0[x] + g * s0[x];
-        s1[x] = a1[x] + g * s1[x];
-        s2[x] = a2[x] + g * s2[x];
+fn vertical_block(c: &VerticalBlock<'_>, planes: [&mut [f32]; 3], state: &mut [f32]) {
+    let w = c.w;
+    let [p0, p1, p2] = planes;
+    let (s0, rest) = state.split_at_mut(w);
+    let (s1, s2) = rest.split_at_mut(w);
+    let v = |plane: usize, y: usize| &c.orig[plane * c.n + y * w..plane * c.n + (y + 1) * w];
+    // Link from row y to row y + 1.
+    let links = |y: usize| &c.connect[y * w..(y + 1) * w];
+    // Forward: F[y] = v[y] + g(y−1→y)·F[y−1], warmed up on the halo above in the state; the
+    // block's rows then recurse on each other in place, with no copy of the state.
+    let warm_start = c.first.saturating_sub(c.halo);
+    s0.fill(0.0);
+    s1.fill(0.0);
+    s2.fill(0.0);
+    for y in warm_start..c.first {
+        let previous = (y > warm_start).then(|| links(y - 1));
+        step_state([s0, s1, s2], [v(0, y), v(1, y), v(2, y)], previous, c.decay);
+    }
+    for y in c.first..c.first + c.rows {
+        let links_above = (y > warm_start).then(|| links(y - 1));
+        let r = (y - c.first) * w;
+        let (above0, row0) = p0.split_at_mut(r);
+        let (above1, row1) = p1.split_at_mut(r);
+        let (above2, row2) = p2.split_at_mut(r);
+        let previous: [&[f32]; 3] = if y == c.first {
+            [s0, s1, s2]
+        } else {
+            [&above0[r - w..], &above1[r - w..], &above2[r - w..]]
+        };
+        step_rows(
+            [&mut row0[..w], &mut row1[..w], &mut row2[..w]],
+            previous,
+            [v(0, y), v(1, y), v(2, y)],
+            links_above,
+            c.decay,
+        );
+    }
+    // Backward: B[y] = v[y] + g(y→y+1)·B[y+1], warmed up on the halo below; adds B − v.
+    let warm_end = (c.first + c.rows + c.halo).min(c.h);
+    s0.fill(0.0);
+    s1.fill(0.0);
+    s2.fill(0.0);
+    for y in (c.first..warm_end).rev() {
+        let (a0, a1, a2) = (v(0, y), v(1, y), v(2, y));
+        let next = (y + 1 < warm_end).then(|| links(y));
+        step_state([s0, s1, s2], [a0, a1, a2], next, c.decay);
+        if y < c.first + c.rows {
+            let r = (y - c.first) * w;
+            for x in 0..w {
+                p0[r + x] += s0[x] - a0[x];
+                p1[r + x] += s1[x] - a1[x];
+                p2[r + x] += s2[x] - a2[x];
+            }
+        }
     }
 }
 
@@ -321,7 +474,7 @@ mod tests {
 
     /// Random planes over `w×h` pixels, each link cut with probability `cut`, smoothed by
     /// [`smooth_planes`] at `decay` and compared with [`reference`].
-    fn parallel_against_plain(w: usize, h: usize, decay: f32, cut: f32) {
+    fn blocked_against_plain(w: usize, h: usize, decay: f32, cut: f32) {
         let mut out = output(w, h);
         let mut state = 12345u64;
         let mut next = || {
@@ -361,26 +514,42 @@ mod tests {
     }
 
     #[test]
-    fn parallel_passes_match_the_plain_recursion() {
-        // 37 columns: strips of 16, the last one shorter; 301 rows in bands; mostly connected,
-        // with random cuts in both directions.
-        parallel_against_plain(37, 301, 0.7, 0.15);
+    fn blocked_parallel_passes_match_the_plain_recursion() {
+        // 301 rows: two vertical blocks, the last one shorter; mostly connected, with random
+        // cuts in both directions.
+        blocked_against_plain(37, 301, 0.7, 0.15);
     }
 
     #[test]
-    fn passes_stay_exact_at_the_full_resolution_reach() {
+    fn blocked_passes_stay_exact_at_the_full_resolution_reach() {
         // The decays at 1920 px wide (0.7 and 0.8 raised to the power 1/3) over long unbroken
-        // columns: when the vertical pass ran in blocks of rows with a fixed 48-row warm-up,
-        // they lost up to 3 % of each sum at their boundaries (0.928⁴⁸).
+        // columns: with a fixed 48-row warm-up the blocks lost up to 3 % of each sum at their
+        // boundaries (0.928⁴⁸).
         for decay in [0.7f32.powf(1.0 / 3.0), 0.8f32.powf(1.0 / 3.0)] {
-            parallel_against_plain(23, 1200, decay, 0.0);
+            blocked_against_plain(23, 1200, decay, 0.0);
         }
     }
 
     #[test]
+    fn vertical_blocks_are_two_where_the_halo_allows() {
+        // Two blocks at the rig's and the camera's sizes, for both filters' decays, whatever
+        // the machine's threads.
+        assert_eq!(vertical_block_rows(400, 0.7), 200);
+        assert_eq!(vertical_block_rows(400, 0.8), 200);
+        assert_eq!(vertical_block_rows(1200, 0.7f32.powf(1.0 / 3.0)), 600);
+        assert_eq!(vertical_block_rows(1200, 0.8f32.powf(1.0 / 3.0)), 600);
+        assert_eq!(vertical_block_rows(301, 0.7), 151);
+        // One where the image is shorter than two halos, or the decay reaches the whole
+        // column; never zero.
+        assert_eq!(vertical_block_rows(150, 0.8), 150);
+        assert_eq!(vertical_block_rows(4000, 1.0), 4000);
+        assert_eq!(vertical_block_rows(0, 0.7), 1);
+    }
+
+    #[test]
     fn the_sums_are_the_same_bits_on_any_number_of_threads() {
-        // The strips follow the threads; each column's recursion does not.
-        let (w, h) = (203, 61);
+        // The blocks of rows depend on the image and the decay, not on the threads.
+        let (w, h) = (203, 401);
         let smoothed = |threads: usize| {
             let mut out = output(w, h);
             for i in 0..w * h {

@@ -19,8 +19,7 @@
 //! the block size changes.
 
 use super::connect::{DOWN, RIGHT};
-use super::smooth::{smooth_planes, Planes};
-use super::smooth_strips::vertical_state_len;
+use super::smooth::{smooth_planes, Planes, VERTICAL_BLOCK_ROWS};
 use super::BAND_ROWS;
 use rayon::prelude::*;
 
@@ -50,7 +49,8 @@ impl BlockScratch {
         self.tmp.resize(3 * nb, 0.0);
         self.band_scratch
             .resize(bh.div_ceil(BAND_ROWS) * band_scratch_len(bw), 0.0);
-        self.vertical_state.resize(vertical_state_len(bw), 0.0);
+        self.vertical_state
+            .resize(3 * bw * bh.div_ceil(VERTICAL_BLOCK_ROWS), 0.0);
     }
 
     /// Links the blocks of `block` pixels from the pixels' links `connect` (`w`×`h`).
