@@ -16,7 +16,7 @@
 //! The per-pixel work is then a Horner polynomial, one division and three products in `f32`, in
 //! a loop over structure-of-array rows that vectorises. `den_i` is not a table: it is affine in
 //! the ray, `den_i = g_i·(d_x, d_y, 1)` with `g_i = Rᵀ·n_i` global, so two products and two sums
-//! per pixel replace two planes (8 B/px, 18 MB at 1920×1200) that every window read.
+//! per pixel replace two planes (8 B/px, 17.6 MiB at 1920×1200) that every window read.
 
 use crate::decode::fastmath::colour_byte;
 use crate::geometry::LensModel;
