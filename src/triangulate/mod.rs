@@ -15,8 +15,10 @@
 //! Projector distortion bends the coded set slightly. The exact path ([`Triangulator::point`])
 //! starts from the plane solution and takes Newton steps along the ray on the coordinate the
 //! real (distorted) projector shows, `x(s) − x = 0`, to 10⁻⁹ px in two or three iterations. The
-//! per-frame path ([`Triangulator::triangulate`]) uses per-pixel tables precomputed once per
-//! calibration ([`fast`]): a distortion polynomial, a ratio of two affine functions and a scale.
+//! per-frame path ([`Triangulator::triangulate`]) uses tables precomputed once per calibration
+//! ([`fast`]): each pixel's ray, and distortion polynomials on a grid of pixels
+//! ([`fit_grid`]), interpolated between its nodes; then a ratio of two affine functions and a
+//! scale.
 
 use crate::decode::DecodeOutput;
 use crate::geometry::{GeometryError, LensModel, Pose};
@@ -24,9 +26,12 @@ use crate::pattern::Axis;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
+mod distortion_fit;
 mod fast;
+mod fit_grid;
 
-pub use fast::{FIT_DEGREE, FIT_DEPTH_RANGE_MM};
+pub use distortion_fit::{FIT_DEGREE, FIT_DEPTH_RANGE_MM};
+pub use fit_grid::{node_step_px, GRID_TOLERANCE_PX};
 
 /// Errors of triangulation.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -84,7 +89,8 @@ pub struct Triangulator {
 }
 
 impl Triangulator {
-    /// Precomputes the rays, plane constants and distortion polynomials of every camera pixel.
+    /// Precomputes the rays of every camera pixel, the plane constants and the distortion
+    /// polynomials on the fit grid.
     pub fn new(model: StereoModel) -> Result<Self, TriangulateError> {
         let cam = model.camera;
         if cam.width == 0 || cam.height == 0 {
@@ -98,18 +104,19 @@ impl Triangulator {
             .into_par_iter()
             .map(|i| cam.ray((i % cam.width) as f64, (i / cam.width) as f64))
             .collect::<Result<Vec<_>, GeometryError>>()?;
-        // Rows of the table in parallel, then joined.
-        let rows: Vec<fast::FastTable> = rays
-            .par_chunks(cam.width)
-            .map(|row| fast::FastTable::new(&model, row))
-            .collect();
-        let table = fast::FastTable::concat(&model, rows);
+        let table = fast::FastTable::new(&model, &rays, |u, v| cam.ray(u as f64, v as f64).ok());
         Ok(Self { model, table })
     }
 
-    /// Heap bytes of the per-pixel tables.
+    /// Heap bytes of the tables (the per-pixel rays and the fit grid).
     pub fn memory_bytes(&self) -> usize {
         self.table.memory_bytes()
+    }
+
+    /// Cells of the distortion grid that keep their pixels' own polynomials (the blend of their
+    /// corners missed a pixel's samples by more than [`GRID_TOLERANCE_PX`]), and all cells.
+    pub fn distortion_cells_kept_per_pixel(&self) -> (usize, usize) {
+        self.table.grid.cells_kept_per_pixel()
     }
 
     /// The plane normal `a` (projector frame) of coded coordinate `x` in the undistorted model.
@@ -198,8 +205,8 @@ impl Triangulator {
             .zip(decoded.colour.par_chunks(w * nc))
             .enumerate()
             .for_each_init(
-                || vec![0f32; w],
-                |depth, (y, (((((points, colours), amplitudes), coordinate), amplitude), colour))| {
+                || fast::RowScratch::new(w),
+                |scratch, (y, (((((points, colours), amplitudes), coordinate), amplitude), colour))| {
                     let input = fast::DecodedRow {
                         coordinate,
                         amplitude,
@@ -212,12 +219,12 @@ impl Triangulator {
                         colours,
                         amplitudes,
                     };
-                    fast::triangulate_row(&self.table, y * w, &input, depth, out);
+                    fast::triangulate_row(&self.table, y, &input, scratch, out);
                     // Rays whose distortion fit is missing (they leave the projector's
                     // image somewhere in the working volume) take the exact path.
                     for x in 0..w {
                         let c = coordinate[x];
-                        if c.is_finite() && self.table.x_mid[y * w + x].is_nan() {
+                        if c.is_finite() && scratch.fit.missing(x) {
                             if let Some(q) = self.point(y * w + x, f64::from(c)) {
                                 points[x] = [q.x as f32, q.y as f32, q.z as f32];
                                 amplitudes[x] = (0..nf)
