@@ -1,6 +1,8 @@
 //! The per-stage throughput check behind `tremorscan bench`: does this PC keep up with the camera?
 //!
-//! It renders a few frames of the virtual rig at the requested size once, then streams them, for
+//! It renders a few frames of the virtual rig at the requested size once (on a thread of its own,
+//! which takes the renderer's image with it when it ends, and the rig is dropped: neither is
+//! part of what the decode thread holds), then streams them, for
 //! the requested time, through exactly the work the pipeline's decode thread does per frame: the
 //! sliding-window decoder (the frame into the window, shared as the pipeline shares captured
 //! frames, then solve, smoothing, unwrapping), the triangulation and the hand-off to the display
@@ -9,12 +11,13 @@
 //! decode thread sustains (one window per camera frame), from the median of its total time, and
 //! the process's resident memory after the warm-up and at the end (steady state: no growth).
 
+use crate::color::CrossTalk;
 use crate::decode::window::SharedFrame;
 use crate::decode::{
     CpuBackend, DecodeBackend, DecodeError, DecodeParams, SlidingDecoder, WindowOutcome,
 };
-use crate::frame::Frame;
 use crate::memory::ResidentMemory;
+use crate::pattern::PatternSequence;
 use crate::rig::{RigConfig, RigError, VirtualRig};
 use crate::triangulate::{PointCloud, TriangulateError, Triangulator};
 use std::sync::Arc;
@@ -46,6 +49,10 @@ pub enum BenchError {
     Triangulate(#[from] TriangulateError),
     #[error("no window was decoded within the run time")]
     NoWindows,
+    #[error("could not start the thread that renders the test frames: {0}")]
+    RenderThread(std::io::Error),
+    #[error("the thread that renders the test frames panicked")]
+    RenderPanicked,
 }
 
 /// What to measure.
@@ -86,6 +93,22 @@ pub struct BenchReport {
     /// This process's resident memory after the warm-up windows and at the end of the run
     /// (steady state: they should be equal); `None` where the system does not report it.
     pub memory: Option<(ResidentMemory, ResidentMemory)>,
+    /// What the stages hold on the heap at the end of the run.
+    pub held: HeldMemory,
+}
+
+/// Heap bytes the stages hold, by holder: where the resident memory goes.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct HeldMemory {
+    /// The decoder's output planes, its stages' scratch ([`crate::decode::DecodeOutput`]) and
+    /// the frames it copied ([`SlidingDecoder::memory_bytes`]).
+    pub decoder_bytes: usize,
+    /// The triangulator's tables.
+    pub triangulator_bytes: usize,
+    /// The point cloud.
+    pub cloud_bytes: usize,
+    /// The test frames, shared with the decoder's window.
+    pub frames_bytes: usize,
 }
 
 /// The `q`-quantile (0..=1) of `values` by nearest rank; `values` is sorted in place.
@@ -98,14 +121,21 @@ pub fn quantile(values: &mut [f64], q: f64) -> f64 {
     values[rank.clamp(1, values.len()) - 1]
 }
 
-/// What the stages run on: the rig, its frames (cycled) and the triangulator of its calibration.
+/// What the stages run on: the rig's pattern sequence and cross-talk, its frames (cycled,
+/// shared as the pipeline shares captured frames) and the triangulator of its calibration.
 pub struct BenchInputs {
-    pub rig: VirtualRig,
-    pub frames: Vec<Frame>,
+    pub width: usize,
+    pub height: usize,
+    pub sequence: PatternSequence,
+    pub cross_talk: CrossTalk,
+    pub frames: Vec<SharedFrame>,
     pub triangulator: Triangulator,
 }
 
-/// Renders the test frames of the virtual rig at `width`×`height`.
+/// Renders the test frames of the virtual rig at `width`×`height`. The rendering runs on a
+/// thread of its own, so that the renderer's linear image (kept per thread, 55 MB at
+/// 1920×1200) goes when the thread ends, and the rig (its rays, 28 MB) is dropped here: the
+/// bench's resident memory is then the decode thread's, as with a camera.
 pub fn prepare(width: usize, height: usize) -> Result<BenchInputs, BenchError> {
     if width < 64 || height < 64 {
         return Err(BenchError::TooSmall { width, height });
@@ -116,15 +146,30 @@ pub fn prepare(width: usize, height: usize) -> Result<BenchInputs, BenchError> {
     let rig_config = RigConfig::paper(width, height)?;
     let sequence = rig_config.default_sequence()?;
     let rig = VirtualRig::new(rig_config, sequence)?;
-    let frames = (0..FRAMES)
-        .map(|i| {
-            let mut frame = rig.blank_frame();
-            rig.render(i, &mut frame, None).map(|()| frame)
-        })
-        .collect::<Result<Vec<Frame>, RigError>>()?;
+    let render = || {
+        (0..FRAMES)
+            .map(|i| {
+                let mut frame = rig.blank_frame();
+                rig.render(i, &mut frame, None)
+                    .map(|()| Arc::new(frame) as SharedFrame)
+            })
+            .collect::<Result<Vec<SharedFrame>, RigError>>()
+    };
+    let frames = std::thread::scope(|scope| {
+        std::thread::Builder::new()
+            .name("bench-render".into())
+            .spawn_scoped(scope, render)
+            .map_err(BenchError::RenderThread)?
+            .join()
+            .map_err(|_| BenchError::RenderPanicked)?
+            .map_err(BenchError::from)
+    })?;
     let triangulator = Triangulator::new(rig.stereo_model())?;
     Ok(BenchInputs {
-        rig,
+        width: rig.width(),
+        height: rig.height(),
+        sequence: rig.sequence,
+        cross_talk: rig.config.cross_talk,
         frames,
         triangulator,
     })
@@ -170,13 +215,16 @@ pub fn run_with(
         return Err(BenchError::BadDuration(seconds));
     }
     let BenchInputs {
-        rig,
+        width,
+        height,
+        sequence,
+        cross_talk,
         frames,
         triangulator,
     } = inputs;
-    let (width, height) = (rig.width(), rig.height());
-    let mut decoder = SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params)?
-        .with_backend(backend);
+    let (width, height) = (*width, *height);
+    let mut decoder =
+        SlidingDecoder::new(sequence.clone(), *cross_talk, params)?.with_backend(backend);
     let mut cloud = PointCloud::default();
     let mut display_coordinate: Vec<f32> = Vec::new();
     let names = [
@@ -190,11 +238,6 @@ pub fn run_with(
         "display hand-off",
         "decode thread (total)",
     ];
-    // Shared with the window as the pipeline shares captured frames: no copy per frame.
-    let frames: Vec<SharedFrame> = frames
-        .iter()
-        .map(|frame| Arc::new(frame.clone()) as SharedFrame)
-        .collect();
     let mut samples: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
     // The device's own compute time, from backends with a clock of their own (GPU timestamps).
     let mut device_samples: Vec<f64> = Vec::new();
@@ -248,6 +291,17 @@ pub fn run_with(
         valid_points = cloud.valid_count();
     }
     let memory_at_end = ResidentMemory::now();
+    let held = HeldMemory {
+        decoder_bytes: decoder.memory_bytes(),
+        triangulator_bytes: triangulator.memory_bytes(),
+        cloud_bytes: cloud.point_in_camera_mm.capacity() * std::mem::size_of::<[f32; 3]>()
+            + cloud.colour_rgb.capacity() * std::mem::size_of::<[u8; 3]>()
+            + cloud.fringe_amplitude.capacity() * std::mem::size_of::<f32>(),
+        frames_bytes: frames
+            .iter()
+            .map(|frame| (**frame).borrow().data.capacity())
+            .sum(),
+    };
     let windows = samples[0].len();
     if windows == 0 {
         return Err(BenchError::NoWindows);
@@ -279,6 +333,7 @@ pub fn run_with(
         stages,
         valid_points,
         memory: memory_after_warm_up.zip(memory_at_end),
+        held,
     })
 }
 
@@ -315,6 +370,11 @@ mod tests {
         let total = report.stages[8].median_ms;
         assert_eq!(report.stages[8].name, "decode thread (total)");
         assert!((report.fps_sustainable - 1e3 / total).abs() < 1e-9);
+        // Six RGB frames of 160×100; the decoder's planes are many times a frame.
+        assert_eq!(report.held.frames_bytes, 6 * 160 * 100 * 3);
+        assert!(report.held.decoder_bytes > 20 * 160 * 100);
+        assert!(report.held.triangulator_bytes >= 8 * 160 * 100);
+        assert_eq!(report.held.cloud_bytes, 19 * 160 * 100);
         let err = run(&BenchConfig {
             width: 32,
             height: 100,

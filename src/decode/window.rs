@@ -161,6 +161,20 @@ impl SlidingDecoder {
         self.unsent_frames = self.window_len();
     }
 
+    /// Heap bytes the decoder holds: its output planes and stages' scratch, and the frames of
+    /// its ring that are its own copies (shared frames belong to whoever captured them).
+    pub fn memory_bytes(&self) -> usize {
+        let owned: usize = self
+            .ring
+            .iter()
+            .filter_map(|frame| match frame {
+                RingFrame::Owned(frame) => Some(frame.data.capacity()),
+                RingFrame::Shared(_) => None,
+            })
+            .sum();
+        owned + self.output.as_ref().map_or(0, DecodeOutput::memory_bytes)
+    }
+
     /// The last decoded result, if any (none once its coordinates were taken, or after a
     /// failed decode).
     pub fn output(&self) -> Option<&DecodeOutput> {

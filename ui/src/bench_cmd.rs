@@ -161,7 +161,7 @@ fn find_binning(out: &mut impl Write, args: &BenchArgs, duration: Duration) -> R
 /// stay on the CPU.
 fn run_gpu(inputs: &BenchInputs, duration: Duration, params: DecodeParams) -> Result<BenchReport> {
     let ctx = GpuContext::new()?;
-    let backend = GpuBackend::new(ctx, &inputs.rig.sequence, &params)?;
+    let backend = GpuBackend::new(ctx, &inputs.sequence, &params)?;
     Ok(run_with(inputs, duration, Box::new(backend), params)?)
 }
 
@@ -244,5 +244,14 @@ fn memory_line(out: &mut impl Write, path: &str, r: &BenchReport) -> std::io::Re
             mb(end.peak_bytes)
         ),
         None => writeln!(out, "{path}: resident memory not reported by this system"),
-    }
+    }?;
+    let held = &r.held;
+    writeln!(
+        out,
+        "{path}: held by the stages: decoder {:.1} MB, triangulator's tables {:.1} MB, point cloud {:.1} MB, the test frames {:.1} MB",
+        mb(held.decoder_bytes as u64),
+        mb(held.triangulator_bytes as u64),
+        mb(held.cloud_bytes as u64),
+        mb(held.frames_bytes as u64)
+    )
 }

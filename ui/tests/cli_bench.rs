@@ -52,6 +52,14 @@ fn bench_prints_stages_and_a_parsable_last_line() {
             assert!((end - start - growth).abs() < 0.11, "{line}");
         }
     }
+    // Where the memory goes: what each stage holds, by holder.
+    let held = stdout
+        .lines()
+        .find(|l| l.starts_with("CPU: held by the stages: decoder "))
+        .unwrap_or_else(|| panic!("no line of what the stages hold:\n{stdout}"));
+    for holder in ["triangulator's tables", "point cloud", "the test frames"] {
+        assert!(held.contains(holder), "{holder} missing: {held}");
+    }
     // The header names the instruction set the CPU kernels dispatched to.
     let kernels = tremorscan::decode::backend::kernel_instruction_set();
     assert!(
