@@ -54,13 +54,8 @@ pub(super) struct FastTable {
 }
 
 impl FastTable {
-    /// Builds the table from the unit rays `rays` of every camera pixel (row-major) and the
-    /// camera's `ray(u, v)` at the grid's nodes.
-    pub fn new(
-        model: &StereoModel,
-        rays: &[Vector3<f64>],
-        ray: impl Fn(usize, usize) -> Option<Vector3<f64>> + Sync,
-    ) -> Self {
+    /// Builds the table from the unit rays `rays` of every camera pixel (row-major).
+    pub fn new(model: &StereoModel, rays: &[Vector3<f64>]) -> Self {
         let (n0, n1) = plane_basis(model.axis, &model.projector);
         let pose = &model.projector_from_camera;
         let t = pose.translation_mm;
@@ -74,7 +69,8 @@ impl FastTable {
             .unzip();
         let (width, height) = (model.camera.width, model.camera.height);
         let grid = FitGrid::new(width, height, node_step_px(width), |u, v| {
-            ray(u, v).and_then(|d| RaySamples::along(model, &(d / d.z)))
+            let d = rays.get(v * width + u)?;
+            RaySamples::along(model, &(d / d.z))
         });
         Self {
             ray_x,

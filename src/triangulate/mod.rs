@@ -104,7 +104,7 @@ impl Triangulator {
             .into_par_iter()
             .map(|i| cam.ray((i % cam.width) as f64, (i / cam.width) as f64))
             .collect::<Result<Vec<_>, GeometryError>>()?;
-        let table = fast::FastTable::new(&model, &rays, |u, v| cam.ray(u as f64, v as f64).ok());
+        let table = fast::FastTable::new(&model, &rays);
         Ok(Self { model, table })
     }
 
