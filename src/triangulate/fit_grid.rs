@@ -34,12 +34,14 @@ use rayon::prelude::*;
 /// Camera pixels between neighbouring nodes of the fit grid, in both directions, for an image
 /// `width` pixels wide: 8 at 1920, the same angle at other widths (at least 2, at most 8).
 pub fn node_step_px(width: usize) -> usize {
-    ((8 * width + 960) / 1920).clamp(2, 8)
+    ((LANES * width + 960) / 1920).clamp(2, LANES)
 }
 /// The largest error the grid's polynomial may make at a pixel's own offset samples, projector
 /// px; a tenth of the fast path's budget of 10⁻³ px (`tests/triangulation.rs`).
 pub const GRID_TOLERANCE_PX: f32 = 1e-4;
 
+/// Pixels of a whole cell at the widest step, expanded as one vector per quantity.
+const LANES: usize = 8;
 /// No per-pixel polynomials: the cell's blend holds.
 const BLENDED: u32 = u32::MAX;
 
@@ -309,6 +311,17 @@ impl FitGrid {
                 for (k, plane) in row.planes.iter_mut().enumerate() {
                     for (o, fit) in plane[x0..end].iter_mut().zip(fits) {
                         *o = fit[k];
+                    }
+                }
+            } else if x1 - x0 == LANES && end == x1 {
+                // A whole cell of the widest step: one vector per quantity.
+                let frac: [f32; LANES] = std::array::from_fn(|s| s as f32 / LANES as f32);
+                for (k, plane) in row.planes.iter_mut().enumerate() {
+                    let (base, slope) = along(k);
+                    if let Ok(out) = <&mut [f32; LANES]>::try_from(&mut plane[x0..end]) {
+                        for (o, f) in out.iter_mut().zip(frac) {
+                            *o = base + f * slope;
+                        }
                     }
                 }
             } else {
