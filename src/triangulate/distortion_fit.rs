@@ -17,6 +17,8 @@ pub const FIT_DEGREE: usize = 6;
 pub const FIT_DEPTH_RANGE_MM: (f64, f64) = (200.0, 1000.0);
 
 pub(super) const TERMS: usize = FIT_DEGREE + 1;
+/// Quantities per pixel: `x_mid`, `inv_half_span` and the coefficients.
+pub(super) const QUANTITIES: usize = TERMS + 2;
 
 /// The shown coordinate and its offset `shown − ideal` at the depth nodes along one ray,
 /// projector px.
@@ -110,6 +112,15 @@ impl DistortionFit {
         let t = (x - self.x_mid) * self.inv_half_span;
         self.coeff.iter().rev().fold(0.0, |acc, &c| acc * t + c)
     }
+}
+
+/// A fit's quantities in the order the row planes hold them.
+pub(super) fn quantities(fit: &DistortionFit) -> [f64; QUANTITIES] {
+    let mut q = [0.0; QUANTITIES];
+    q[0] = fit.x_mid;
+    q[1] = fit.inv_half_span;
+    q[2..].copy_from_slice(&fit.coeff);
+    q
 }
 
 /// Monomial coefficients (lowest first) of the polynomial through `(xs, ys)`, by Newton's

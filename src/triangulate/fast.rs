@@ -23,9 +23,10 @@ use crate::geometry::LensModel;
 use crate::pattern::Axis;
 use nalgebra::Vector3;
 
-use super::distortion_fit::{RaySamples, TERMS};
-use super::fit_grid::{node_step_px, FitGrid, RowFit};
+use super::distortion_fit::{quantities, DistortionFit, RaySamples, QUANTITIES, TERMS};
+use super::fit_grid::{FitGrid, RowFit};
 use super::StereoModel;
+use rayon::prelude::*;
 
 /// The plane normal of coded coordinate `x` is `n0 + x·n1`.
 pub(super) fn plane_basis(axis: Axis, projector: &LensModel) -> (Vector3<f64>, Vector3<f64>) {
@@ -40,13 +41,22 @@ pub(super) fn plane_basis(axis: Axis, projector: &LensModel) -> (Vector3<f64>, V
     }
 }
 
-/// The per-pixel rays (structure of arrays), the distortion grid and the global constants.
-#[derive(Debug, Clone, Default)]
+/// The distortion polynomials of every pixel: on a grid, or one plane per quantity.
+#[derive(Debug, Clone)]
+pub(super) enum Polynomials {
+    Grid(FitGrid),
+    /// `x_mid` (NaN where the fit is missing), `inv_half_span` and the coefficients, per pixel.
+    PerPixel([Vec<f32>; QUANTITIES]),
+}
+
+/// The per-pixel rays (structure of arrays), the distortion polynomials and the global
+/// constants.
+#[derive(Debug, Clone)]
 pub(super) struct FastTable {
     /// Ray direction over its depth: `point = (ray_x·z, ray_y·z, z)`.
     pub ray_x: Vec<f32>,
     pub ray_y: Vec<f32>,
-    pub grid: FitGrid,
+    pub polynomials: Polynomials,
     pub num0: f32,
     pub num1: f32,
     /// `g_0` and `g_1`: `den_i = g_i·(ray_x, ray_y, 1)`.
@@ -54,8 +64,9 @@ pub(super) struct FastTable {
 }
 
 impl FastTable {
-    /// Builds the table from the unit rays `rays` of every camera pixel (row-major).
-    pub fn new(model: &StereoModel, rays: &[Vector3<f64>]) -> Self {
+    /// Builds the table from the unit rays `rays` of every camera pixel (row-major), with the
+    /// distortion polynomials on a grid of `grid_step` pixels, or per pixel.
+    pub fn new(model: &StereoModel, rays: &[Vector3<f64>], grid_step: Option<usize>) -> Self {
         let (n0, n1) = plane_basis(model.axis, &model.projector);
         let pose = &model.projector_from_camera;
         let t = pose.translation_mm;
@@ -68,14 +79,25 @@ impl FastTable {
             .map(|d| ((d.x / d.z) as f32, (d.y / d.z) as f32))
             .unzip();
         let (width, height) = (model.camera.width, model.camera.height);
-        let grid = FitGrid::new(width, height, node_step_px(width), |u, v| {
-            let d = rays.get(v * width + u)?;
-            RaySamples::along(model, &(d / d.z))
-        });
+        let samples = |d: &Vector3<f64>| RaySamples::along(model, &(d / d.z));
+        let polynomials = match grid_step {
+            Some(step) => Polynomials::Grid(FitGrid::new(width, height, step, |u, v| {
+                samples(rays.get(v * width + u)?)
+            })),
+            None => {
+                let fits: Vec<[f64; QUANTITIES]> = rays
+                    .par_iter()
+                    .map(|d| quantities(&DistortionFit::through(samples(d).as_ref())))
+                    .collect();
+                Polynomials::PerPixel(std::array::from_fn(|k| {
+                    fits.iter().map(|q| q[k] as f32).collect()
+                }))
+            }
+        };
         Self {
             ray_x,
             ray_y,
-            grid,
+            polynomials,
             num0: -n0.dot(&t) as f32,
             num1: -n1.dot(&t) as f32,
             den_of_ray: [of_ray(&n0), of_ray(&n1)],
@@ -83,12 +105,27 @@ impl FastTable {
     }
 
     pub fn memory_bytes(&self) -> usize {
-        (self.ray_x.capacity() + self.ray_y.capacity()) * std::mem::size_of::<f32>()
-            + self.grid.memory_bytes()
+        let polynomials = match &self.polynomials {
+            Polynomials::Grid(grid) => grid.memory_bytes(),
+            Polynomials::PerPixel(planes) => {
+                planes.iter().map(Vec::capacity).sum::<usize>() * std::mem::size_of::<f32>()
+            }
+        };
+        (self.ray_x.capacity() + self.ray_y.capacity()) * std::mem::size_of::<f32>() + polynomials
+    }
+
+    /// Whether pixel `x` of row `y` has no polynomial (its ray leaves the projector's image in
+    /// the working volume), after [`triangulate_row`] of that row with `scratch`.
+    pub fn fit_missing(&self, y: usize, x: usize, scratch: &RowScratch) -> bool {
+        match &self.polynomials {
+            Polynomials::Grid(_) => scratch.fit.missing(x),
+            Polynomials::PerPixel(planes) => planes[0][y * scratch.depth.len() + x].is_nan(),
+        }
     }
 }
 
-/// A row's scratch: the per-pixel polynomials expanded from the grid, and the depths.
+/// A row's scratch: the per-pixel polynomials expanded from the grid (unused with per-pixel
+/// planes), and the depths.
 pub(super) struct RowScratch {
     pub fit: RowFit,
     pub depth: Vec<f32>,
@@ -136,12 +173,17 @@ pub(super) fn triangulate_row(
     out: CloudRow<'_>,
 ) {
     let w = input.coordinate.len();
-    table.grid.expand_row(y, &mut scratch.fit);
     let span = y * w..(y + 1) * w;
+    let planes: [&[f32]; QUANTITIES] = match &table.polynomials {
+        Polynomials::Grid(grid) => {
+            grid.expand_row(y, &mut scratch.fit);
+            std::array::from_fn(|k| &scratch.fit.planes[k][..w])
+        }
+        Polynomials::PerPixel(planes) => std::array::from_fn(|k| &planes[k][span.clone()]),
+    };
     let (rx, ry) = (&table.ray_x[span.clone()], &table.ray_y[span]);
-    let planes = &scratch.fit.planes;
-    let (xm, inv) = (&planes[0][..w], &planes[1][..w]);
-    let c: [&[f32]; TERMS] = std::array::from_fn(|i| &planes[2 + i][..w]);
+    let (xm, inv) = (planes[0], planes[1]);
+    let c: [&[f32]; TERMS] = std::array::from_fn(|i| planes[2 + i]);
     let depth = &mut scratch.depth[..w];
     let (num0, num1) = (table.num0, table.num1);
     let [g0, g1] = table.den_of_ray;

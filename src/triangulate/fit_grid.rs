@@ -28,7 +28,7 @@
 //! differs between neighbours). A pixel whose ray leaves the projector's image somewhere in the
 //! working volume has no polynomial (NaN `x_mid`): it takes the exact path.
 
-use super::distortion_fit::{DistortionFit, RaySamples, TERMS};
+use super::distortion_fit::{quantities, DistortionFit, RaySamples, QUANTITIES};
 use rayon::prelude::*;
 
 /// Camera pixels between neighbouring nodes of the fit grid, in both directions, for an image
@@ -45,16 +45,12 @@ const LANES: usize = 8;
 /// No per-pixel polynomials: the cell's blend holds.
 const BLENDED: u32 = u32::MAX;
 
-/// Quantities per pixel: `x_mid`, `inv_half_span` and the coefficients.
-pub(super) const QUANTITIES: usize = TERMS + 2;
-
-/// A fit's quantities in the order the row planes hold them.
-fn quantities(fit: &DistortionFit) -> [f64; QUANTITIES] {
-    let mut q = [0.0; QUANTITIES];
-    q[0] = fit.x_mid;
-    q[1] = fit.inv_half_span;
-    q[2..].copy_from_slice(&fit.coeff);
-    q
+/// Whether an image `width` pixels wide takes the grid: where its cells are whole vectors
+/// ([`node_step_px`] is 8, from 1800 px). On smaller images a cell's few pixels cost more to
+/// expand than per-pixel planes cost to read (640×400: 1.8 against 0.9 ms per window), and
+/// those planes are small (9 MiB).
+pub fn grid_pays(width: usize) -> bool {
+    node_step_px(width) == LANES
 }
 
 /// One grid cell's fit as a bilinear form in the cell's fractions `wx`, `wy`, per quantity:
@@ -340,6 +336,7 @@ impl FitGrid {
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, reason = "tests")]
+    use super::super::distortion_fit::TERMS;
     use super::*;
 
     /// Samples at the Chebyshev nodes of `t` of a ray centred on `x_mid` with half span 40 px.

@@ -31,7 +31,7 @@ mod fast;
 mod fit_grid;
 
 pub use distortion_fit::{FIT_DEGREE, FIT_DEPTH_RANGE_MM};
-pub use fit_grid::{node_step_px, GRID_TOLERANCE_PX};
+pub use fit_grid::{grid_pays, node_step_px, GRID_TOLERANCE_PX};
 
 /// Errors of triangulation.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -104,8 +104,24 @@ impl Triangulator {
             .into_par_iter()
             .map(|i| cam.ray((i % cam.width) as f64, (i / cam.width) as f64))
             .collect::<Result<Vec<_>, GeometryError>>()?;
-        let table = fast::FastTable::new(&model, &rays);
+        let grid_step = fit_grid::grid_pays(cam.width).then(|| node_step_px(cam.width));
+        let table = fast::FastTable::new(&model, &rays, grid_step);
         Ok(Self { model, table })
+    }
+
+    /// [`Triangulator::new`] with the distortion polynomials on a grid of `step` pixels
+    /// whatever the image's size (the tests' and the benchmarks' comparison; the default takes
+    /// the grid from 1800 px wide, [`grid_pays`]).
+    pub fn with_distortion_grid(model: StereoModel, step: usize) -> Result<Self, TriangulateError> {
+        let mut triangulator = Self::new(model)?;
+        let rays: Vec<Vector3<f64>> = (0..triangulator.table.ray_x.len())
+            .map(|p| {
+                let (x, y) = (triangulator.table.ray_x[p], triangulator.table.ray_y[p]);
+                Vector3::new(f64::from(x), f64::from(y), 1.0)
+            })
+            .collect();
+        triangulator.table = fast::FastTable::new(&model, &rays, Some(step));
+        Ok(triangulator)
     }
 
     /// Heap bytes of the tables (the per-pixel rays and the fit grid).
@@ -114,9 +130,13 @@ impl Triangulator {
     }
 
     /// Cells of the distortion grid that keep their pixels' own polynomials (the blend of their
-    /// corners missed a pixel's samples by more than [`GRID_TOLERANCE_PX`]), and all cells.
-    pub fn distortion_cells_kept_per_pixel(&self) -> (usize, usize) {
-        self.table.grid.cells_kept_per_pixel()
+    /// corners missed a pixel's samples by more than [`GRID_TOLERANCE_PX`]), and all cells;
+    /// `None` where the polynomials are per pixel.
+    pub fn distortion_cells_kept_per_pixel(&self) -> Option<(usize, usize)> {
+        match &self.table.polynomials {
+            fast::Polynomials::Grid(grid) => Some(grid.cells_kept_per_pixel()),
+            fast::Polynomials::PerPixel(_) => None,
+        }
     }
 
     /// The plane normal `a` (projector frame) of coded coordinate `x` in the undistorted model.
@@ -224,7 +244,7 @@ impl Triangulator {
                     // image somewhere in the working volume) take the exact path.
                     for x in 0..w {
                         let c = coordinate[x];
-                        if c.is_finite() && scratch.fit.missing(x) {
+                        if c.is_finite() && self.table.fit_missing(y, x, scratch) {
                             if let Some(q) = self.point(y * w + x, f64::from(c)) {
                                 points[x] = [q.x as f32, q.y as f32, q.z as f32];
                                 amplitudes[x] = (0..nf)
