@@ -278,3 +278,56 @@ fn the_cloud_carries_each_pixels_colour_and_smallest_amplitude() {
         "{valid} valid, {invalid} invalid"
     );
 }
+
+#[test]
+fn at_full_resolution_the_distortion_grid_holds_at_every_pixel() {
+    use tremorscan::decode::{DecodeOutput, WindowSolver};
+    use tremorscan::rig::RigConfig;
+    let config = RigConfig::paper(1920, 1200).unwrap();
+    let seq = config.default_sequence().unwrap();
+    let rig = VirtualRig::new(config, seq).unwrap();
+    let triangulator = Triangulator::new(rig.stereo_model()).unwrap();
+    // Cells of 8 px; the blend met every pixel's own samples, so none keeps per-pixel
+    // polynomials, and the tables are the rays (8 B/px) and the grid (148 B per 64 px): under
+    // 11 B/px, where the per-pixel polynomials took 40.
+    assert_eq!(
+        triangulator.distortion_cells_kept_per_pixel(),
+        Some((0, 240 * 150))
+    );
+    assert!(
+        triangulator.memory_bytes() < 11 * 1920 * 1200,
+        "{} B",
+        triangulator.memory_bytes()
+    );
+    // The fast path against the exact solution on every 61st lit pixel of the still scene.
+    let mut frame = rig.blank_frame();
+    let mut truth = GroundTruth::default();
+    rig.render(0, &mut frame, Some(&mut truth)).unwrap();
+    let solver = WindowSolver::new(&rig.sequence, &[0, 1, 2], &rig.config.cross_talk).unwrap();
+    let mut decoded = DecodeOutput::new(rig.width(), rig.height(), &solver);
+    decoded.coordinate_px.clone_from(&truth.coordinate_px);
+    decoded.amplitude.fill(10.0);
+    let mut cloud = PointCloud::default();
+    triangulator.triangulate(&decoded, &mut cloud).unwrap();
+    let (mut worst, mut count) = (0f64, 0usize);
+    for (p, &x) in truth.coordinate_px.iter().enumerate().step_by(61) {
+        let Some(exact) = triangulator.point(p, f64::from(x)) else {
+            continue;
+        };
+        let z = |dx: f64| {
+            triangulator
+                .point(p, f64::from(x) + dx)
+                .map_or(f64::NAN, |q| q.z)
+        };
+        let sensitivity = ((z(0.01) - z(-0.01)) / 0.02).abs().max(1.0);
+        let fast = cloud.point_in_camera_mm[p];
+        let err = (0..3)
+            .map(|i| (f64::from(fast[i]) - exact[i]).abs())
+            .fold(0.0, f64::max);
+        assert!(err <= 1e-3 * sensitivity, "pixel {p}: {err} mm");
+        worst = worst.max(err / sensitivity);
+        count += 1;
+    }
+    assert!(count > 30_000, "{count} pixels compared");
+    eprintln!("1920×1200, grid of 8 px: worst {worst:.2e} px equivalent over {count} pixels");
+}
