@@ -1,9 +1,9 @@
 //! The per-stage throughput check behind `tremorscan bench`: does this PC keep up with the camera?
 //!
-//! It renders a few frames of the virtual rig at the requested size once (on a thread of its own,
-//! which takes the renderer's image with it when it ends, and the rig is dropped: neither is
-//! part of what the decode thread holds), then streams them, for
-//! the requested time, through exactly the work the pipeline's decode thread does per frame: the
+//! It renders a few frames of the virtual rig at the requested size once (on a thread of its
+//! own, which takes the renderer's image with it when it ends; the rig is dropped: neither is
+//! part of what the decode thread holds), then streams them, for the requested time, through
+//! exactly the work the pipeline's decode thread does per frame: the
 //! sliding-window decoder (the frame into the window, shared as the pipeline shares captured
 //! frames, then solve, smoothing, unwrapping), the triangulation and the hand-off to the display
 //! (the coordinates move out of the decoder without a copy), after a few warm-up windows. Each

@@ -10,13 +10,14 @@
 //! ```
 //!
 //! Projector distortion moves the coordinate a real projector shows along the ray by a smooth
-//! offset, a polynomial in the shown coordinate fitted on a grid of camera pixels
-//! ([`super::fit_grid`]); each row's per-pixel polynomials are expanded from the grid into a row
-//! of scratch. The per-pixel work is then a Horner polynomial in the fit's normalised variable, one division and three products in
-//! `f32`, in a loop over structure-of-array rows that vectorises. `den_i` is not a table: it is
-//! affine in the ray, `den_i = g_i·(d_x, d_y, 1)` with `g_i = Rᵀ·n_i` global, so two products and
-//! two sums per pixel replace two planes. What is read per pixel from memory is the ray
-//! (`ray_x`, `ray_y`, 8 B) and the decoded row.
+//! offset, a polynomial in the shown coordinate ([`super::distortion_fit`]). From 1800 px wide
+//! the polynomials are fitted on a grid of pixels ([`super::fit_grid`]) and each row's are
+//! expanded into a row of scratch (a fifth of the memory; [`super::fit_grid::grid_pays`]);
+//! below, every pixel's is a column of nine planes. The per-pixel work is then a Horner
+//! polynomial in the fit's normalised variable, one division and three products in `f32`, in a
+//! loop over structure-of-array rows that vectorises. `den_i` is not a table: it is affine in
+//! the ray, `den_i = g_i·(d_x, d_y, 1)` with `g_i = Rᵀ·n_i` global, so two products and two sums
+//! per pixel replace two planes.
 
 use crate::decode::fastmath::colour_byte;
 use crate::geometry::LensModel;
@@ -84,15 +85,7 @@ impl FastTable {
             Some(step) => Polynomials::Grid(FitGrid::new(width, height, step, |u, v| {
                 samples(rays.get(v * width + u)?)
             })),
-            None => {
-                let fits: Vec<[f64; QUANTITIES]> = rays
-                    .par_iter()
-                    .map(|d| quantities(&DistortionFit::through(samples(d).as_ref())))
-                    .collect();
-                Polynomials::PerPixel(std::array::from_fn(|k| {
-                    fits.iter().map(|q| q[k] as f32).collect()
-                }))
-            }
+            None => Polynomials::PerPixel(per_pixel_planes(width, rays, samples)),
         };
         Self {
             ray_x,
@@ -124,7 +117,35 @@ impl FastTable {
     }
 }
 
-/// A row's scratch: the per-pixel polynomials expanded from the grid (unused with per-pixel
+/// Every pixel's polynomial as one plane per quantity, each row's written in parallel into
+/// planes allocated once (joining per-row parts would hold both for a moment).
+fn per_pixel_planes(
+    width: usize,
+    rays: &[Vector3<f64>],
+    samples: impl Fn(&Vector3<f64>) -> Option<RaySamples> + Sync,
+) -> [Vec<f32>; QUANTITIES] {
+    let mut planes: [Vec<f32>; QUANTITIES] = std::array::from_fn(|_| vec![0.0; rays.len()]);
+    let mut chunks: Vec<_> = planes
+        .iter_mut()
+        .map(|plane| plane.chunks_mut(width.max(1)))
+        .collect();
+    let rows: Vec<Vec<&mut [f32]>> = (0..rays.len().div_ceil(width.max(1)))
+        .map(|_| chunks.iter_mut().filter_map(Iterator::next).collect())
+        .collect();
+    rows.into_par_iter()
+        .zip(rays.par_chunks(width.max(1)))
+        .for_each(|(mut row, row_rays)| {
+            for (x, d) in row_rays.iter().enumerate() {
+                let q = quantities(&DistortionFit::through(samples(d).as_ref()));
+                for (plane, value) in row.iter_mut().zip(q) {
+                    plane[x] = value as f32;
+                }
+            }
+        });
+    planes
+}
+
+/// A row's scratch: the per-pixel polynomials expanded from the grid (empty with per-pixel
 /// planes), and the depths.
 pub(super) struct RowScratch {
     pub fit: RowFit,
@@ -132,9 +153,13 @@ pub(super) struct RowScratch {
 }
 
 impl RowScratch {
-    pub fn new(width: usize) -> Self {
+    pub fn new(table: &FastTable, width: usize) -> Self {
+        let expanded = match table.polynomials {
+            Polynomials::Grid(_) => width,
+            Polynomials::PerPixel(_) => 0,
+        };
         Self {
-            fit: RowFit::new(width),
+            fit: RowFit::new(expanded),
             depth: vec![0.0; width],
         }
     }
@@ -158,8 +183,8 @@ pub(super) struct DecodedRow<'a> {
 }
 
 /// Triangulates image row `y`, with `scratch` for its polynomials and depths. Pixels whose
-/// distortion fit is missing (`scratch.fit.missing`) are left NaN: the caller takes the exact
-/// path for them.
+/// distortion fit is missing ([`FastTable::fit_missing`]) are left NaN: the caller takes the
+/// exact path for them.
 #[multiversion::multiversion(targets(
     "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
     "x86_64+avx2+fma",

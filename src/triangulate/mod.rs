@@ -225,7 +225,7 @@ impl Triangulator {
             .zip(decoded.colour.par_chunks(w * nc))
             .enumerate()
             .for_each_init(
-                || fast::RowScratch::new(w),
+                || fast::RowScratch::new(&self.table, w),
                 |scratch, (y, (((((points, colours), amplitudes), coordinate), amplitude), colour))| {
                     let input = fast::DecodedRow {
                         coordinate,
