@@ -1,32 +1,33 @@
 //! The projector-distortion polynomials of the fast path ([`super::distortion_fit`]), fitted
 //! on a grid of camera pixels and interpolated bilinearly between its nodes (issue 23: narrow,
-//! reduced-resolution tables).
+//! reduced-resolution tables). The triangulator takes it from 1800 px wide ([`grid_pays`]).
 //!
 //! The offset between the shown and the ideal coded coordinate changes smoothly from one camera
 //! pixel to the next, so the polynomials are fitted only at nodes [`node_step_px`] pixels apart
 //! in both directions: 8 at 1920 columns, and as many pixels for the same angle on smaller
-//! images (3 at 640), where the blend's error would otherwise grow with the square of the angle. Each is a polynomial in `t = (x − x_mid)·inv_half_span`, which runs over
-//! [−1, 1] between the shown coordinates of the outermost depth samples. The shown coordinate is
-//! nearly affine in inverse depth, so one `t` is nearly one depth on every ray: a bilinear blend
-//! of four corners' coefficients (and of their `x_mid` and `inv_half_span`) blends their offsets
-//! at the same depth. (Blending at the same shown coordinate instead fails where the coded
-//! coordinate barely changes with depth, rows coded across a horizontal baseline: each ray's
-//! polynomial spans a fraction of a pixel there, and a neighbour's, evaluated a pixel away,
-//! extrapolates far out of its range, 2 mm off on the rig.)
+//! images (3 at 640), where the blend's error would otherwise grow with the square of the
+//! angle. Each is a polynomial in `t = (x − x_mid)·inv_half_span`, which runs over [−1, 1]
+//! between the shown coordinates of the outermost depth samples. The shown coordinate is nearly
+//! affine in inverse depth, so one `t` is nearly one depth on every ray: a bilinear blend of four
+//! corners' coefficients (and of their `x_mid` and `inv_half_span`) blends their offsets at the
+//! same depth. (Blending at the same shown coordinate instead fails where the coded coordinate
+//! barely changes with depth, rows coded across a horizontal baseline: each ray's polynomial
+//! spans a fraction of a pixel there, and a neighbour's, evaluated a pixel away, extrapolates
+//! far out of its range, 2 mm off on the rig.)
 //!
 //! A cell stores each quantity as `a + wx·bx + wy·(by + wx·bxy)` (`wx`, `wy` ∈ [0, 1] across
 //! it): per image row the `wy` terms fold into two values per cell, and per pixel one product and
 //! one sum per quantity give its polynomial ([`FitGrid::expand_row`]), into a row of scratch that
-//! stays in cache. The full-resolution table held seven coefficient planes and a centre plane
-//! (32 B/px, 70 MiB at 1920×1200); the grid holds 148 B per cell.
+//! stays in cache. Per-pixel polynomials take nine planes (36 B/px, 83 MB at 1920×1200); the
+//! grid takes 148 B per cell of 8×8 pixels (5.3 MB).
 //!
 //! Every pixel is checked when the grid is built: the blended polynomial, evaluated in `f32` as
 //! the kernel does, must reproduce the pixel's own offset samples that fall on the projector's
-//! image to [`GRID_TOLERANCE_PX`]. A
-//! cell where some pixel does not keeps every pixel's own polynomial instead (where the ray
-//! grazes the coded planes, so the coordinate hardly changes with depth and the `t` of one depth
-//! differs between neighbours). A pixel whose ray leaves the projector's image somewhere in the
-//! working volume has no polynomial (NaN `x_mid`): it takes the exact path.
+//! image to [`GRID_TOLERANCE_PX`]. A cell where some pixel does not keeps every pixel's own
+//! polynomial instead (where the ray grazes the coded planes, so the coordinate hardly changes
+//! with depth and the `t` of one depth differs between neighbours). A pixel whose ray leaves the
+//! projector's image somewhere in the working volume has no polynomial (NaN `x_mid`): it takes
+//! the exact path.
 
 use super::distortion_fit::{quantities, DistortionFit, RaySamples, QUANTITIES};
 use rayon::prelude::*;
