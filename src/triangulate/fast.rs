@@ -25,7 +25,7 @@ use crate::pattern::Axis;
 use nalgebra::Vector3;
 
 use super::distortion_fit::{quantities, DistortionFit, RaySamples, QUANTITIES, TERMS};
-use super::fit_grid::{FitGrid, RowFit};
+use super::fit_grid::{FitGrid, RowFit, Segment, SEGMENT_LANES};
 use super::StereoModel;
 use rayon::prelude::*;
 
@@ -150,6 +150,8 @@ fn per_pixel_planes(
 pub(super) struct RowScratch {
     pub fit: RowFit,
     pub depth: Vec<f32>,
+    /// The row's cells, in order (the grid only).
+    pub segments: Vec<Segment>,
 }
 
 impl RowScratch {
@@ -161,6 +163,7 @@ impl RowScratch {
         Self {
             fit: RowFit::new(expanded),
             depth: vec![0.0; width],
+            segments: Vec::with_capacity(expanded / SEGMENT_LANES + 2),
         }
     }
 }
@@ -199,34 +202,132 @@ pub(super) fn triangulate_row(
 ) {
     let w = input.coordinate.len();
     let span = y * w..(y + 1) * w;
-    let planes: [&[f32]; QUANTITIES] = match &table.polynomials {
+    let (rx, ry) = (&table.ray_x[span.clone()], &table.ray_y[span.clone()]);
+    let coordinate = &input.coordinate[..w];
+    let RowScratch {
+        fit,
+        depth,
+        segments,
+    } = scratch;
+    let depth = &mut depth[..w];
+    let rays = Rays { rx, ry };
+    match &table.polynomials {
         Polynomials::Grid(grid) => {
-            grid.expand_row(y, &mut scratch.fit);
-            std::array::from_fn(|k| &scratch.fit.planes[k][..w])
+            grid.expand_row_into_segments(y, fit, segments);
+            let planes: [&[f32]; QUANTITIES] = std::array::from_fn(|k| &fit.planes[k][..w]);
+            for segment in segments.iter() {
+                let px = segment.x0..segment.end;
+                match &segment.blend {
+                    Some((base, slope)) => {
+                        depth_of_cell(table, base, slope, &rays, coordinate, depth, segment.x0);
+                    }
+                    None => depth_of_pixels(table, &planes, &rays, coordinate, depth, px),
+                }
+            }
         }
-        Polynomials::PerPixel(planes) => std::array::from_fn(|k| &planes[k][span.clone()]),
-    };
-    let (rx, ry) = (&table.ray_x[span.clone()], &table.ray_y[span]);
-    let (xm, inv) = (planes[0], planes[1]);
-    let c: [&[f32]; TERMS] = std::array::from_fn(|i| planes[2 + i]);
-    let depth = &mut scratch.depth[..w];
-    let (num0, num1) = (table.num0, table.num1);
+        Polynomials::PerPixel(planes) => {
+            let planes: [&[f32]; QUANTITIES] = std::array::from_fn(|k| &planes[k][span.clone()]);
+            depth_of_pixels(table, &planes, &rays, coordinate, depth, 0..w);
+        }
+    }
+    write_outputs(rx, ry, input, depth, out);
+}
+
+/// A row's rays over their depth.
+struct Rays<'a> {
+    rx: &'a [f32],
+    ry: &'a [f32],
+}
+
+/// The depth along the ray where the coded surface of the coordinate `shown`, less its
+/// distortion `offset`, meets it: NaN for an invalid coordinate, a missing fit or a point
+/// behind the camera.
+#[inline(always)]
+fn depth_at(table: &FastTable, rx: f32, ry: f32, shown: f32, offset: f32) -> f32 {
     let [g0, g1] = table.den_of_ray;
-    for x in 0..w {
-        let d0 = g0[0] * rx[x] + g0[1] * ry[x] + g0[2];
-        let d1 = g1[0] * rx[x] + g1[1] * ry[x] + g1[2];
-        let shown = input.coordinate[x];
-        let t = (shown - xm[x]) * inv[x];
+    let d0 = g0[0] * rx + g0[1] * ry + g0[2];
+    let d1 = g1[0] * rx + g1[1] * ry + g1[2];
+    let ideal = shown - offset;
+    let z = (table.num0 + table.num1 * ideal) / (d0 + d1 * ideal);
+    if z > 0.0 && z < f32::MAX {
+        z
+    } else {
+        f32::NAN
+    }
+}
+
+/// Depths of pixels `px` with their polynomials in `planes` (`x_mid`, `inv_half_span`, the
+/// coefficients).
+#[inline(always)]
+fn depth_of_pixels(
+    table: &FastTable,
+    planes: &[&[f32]; QUANTITIES],
+    rays: &Rays<'_>,
+    coordinate: &[f32],
+    depth: &mut [f32],
+    px: std::ops::Range<usize>,
+) {
+    let (xm, inv) = (&planes[0][px.clone()], &planes[1][px.clone()]);
+    let c: [&[f32]; TERMS] = std::array::from_fn(|i| &planes[2 + i][px.clone()]);
+    let (rx, ry) = (&rays.rx[px.clone()], &rays.ry[px.clone()]);
+    let shown = &coordinate[px.clone()];
+    let depth = &mut depth[px];
+    for x in 0..depth.len() {
+        let t = (shown[x] - xm[x]) * inv[x];
         let mut offset = c[TERMS - 1][x];
         for i in (0..TERMS - 1).rev() {
             offset = offset * t + c[i][x];
         }
-        let ideal = shown - offset;
-        let z = (num0 + num1 * ideal) / (d0 + d1 * ideal);
-        // NaN (invalid coordinate, missing fit) and points behind the camera fail the test.
-        depth[x] = if z > 0.0 && z < f32::MAX { z } else { f32::NAN };
+        depth[x] = depth_at(table, rx[x], ry[x], shown[x], offset);
     }
-    write_outputs(rx, ry, input, depth, out);
+}
+
+/// Depths of the whole cell of the widest step starting at `x0`, its polynomials blended in
+/// registers (`base + frac·slope`, the same operations [`FitGrid::expand_row`] writes out).
+#[inline(always)]
+fn depth_of_cell(
+    table: &FastTable,
+    base: &[f32; QUANTITIES],
+    slope: &[f32; QUANTITIES],
+    rays: &Rays<'_>,
+    coordinate: &[f32],
+    depth: &mut [f32],
+    x0: usize,
+) {
+    const L: usize = SEGMENT_LANES;
+    let px = x0..x0 + L;
+    let frac: [f32; L] = std::array::from_fn(|s| s as f32 / L as f32);
+    let (Some(rx), Some(ry), Some(shown), Some(out)) = (
+        rays.rx
+            .get(px.clone())
+            .and_then(|s| <&[f32; L]>::try_from(s).ok()),
+        rays.ry
+            .get(px.clone())
+            .and_then(|s| <&[f32; L]>::try_from(s).ok()),
+        coordinate
+            .get(px.clone())
+            .and_then(|s| <&[f32; L]>::try_from(s).ok()),
+        depth
+            .get_mut(px)
+            .and_then(|s| <&mut [f32; L]>::try_from(s).ok()),
+    ) else {
+        // A segment is a whole cell inside the row, so this is not reached; were it, the cell
+        // would have no depth rather than a stale one.
+        for d in depth.iter_mut().skip(x0).take(L) {
+            *d = f32::NAN;
+        }
+        return;
+    };
+    for lane in 0..L {
+        let f = frac[lane];
+        let q = |k: usize| base[k] + f * slope[k];
+        let t = (shown[lane] - q(0)) * q(1);
+        let mut offset = q(QUANTITIES - 1);
+        for k in (2..QUANTITIES - 1).rev() {
+            offset = offset * t + q(k);
+        }
+        out[lane] = depth_at(table, rx[lane], ry[lane], shown[lane], offset);
+    }
 }
 
 /// The point, smallest amplitude and colour bytes of each pixel of the row, from its depth.

@@ -291,6 +291,25 @@ impl FitGrid {
     /// Each pixel's polynomial along image row `y` into `row` (its first `width` pixels).
     #[inline(always)]
     pub fn expand_row(&self, y: usize, row: &mut RowFit) {
+        self.expand(y, row, None);
+    }
+
+    /// [`Self::expand_row`], except that each whole blended cell of the widest step is handed
+    /// over in `segments` as its blend (`base + frac·slope` per quantity) for the kernel to
+    /// evaluate in registers; only its `x_mid` plane is written (for
+    /// [`RowFit::missing`]). `segments` lists every cell of the row in order.
+    pub fn expand_row_into_segments(
+        &self,
+        y: usize,
+        row: &mut RowFit,
+        segments: &mut Vec<Segment>,
+    ) {
+        segments.clear();
+        self.expand(y, row, Some(segments));
+    }
+
+    #[inline(always)]
+    fn expand(&self, y: usize, row: &mut RowFit, mut segments: Option<&mut Vec<Segment>>) {
         let cells_x = self.node_x.len() - 1;
         let i = self.cell_row(y);
         let (y0, y1) = (self.node_y[i], self.node_y[i + 1]);
@@ -315,6 +334,19 @@ impl FitGrid {
             } else if x1 - x0 == LANES && end == x1 {
                 // A whole cell of the widest step: one vector per quantity.
                 let frac: [f32; LANES] = std::array::from_fn(|s| s as f32 / LANES as f32);
+                if let Some(segments) = segments.as_deref_mut() {
+                    let base = std::array::from_fn(|k| along(k).0);
+                    let slope = std::array::from_fn(|k| along(k).1);
+                    for (o, f) in row.planes[0][x0..end].iter_mut().zip(frac) {
+                        *o = base[0] + f * slope[0];
+                    }
+                    segments.push(Segment {
+                        x0,
+                        end,
+                        blend: Some((base, slope)),
+                    });
+                    continue;
+                }
                 for (k, plane) in row.planes.iter_mut().enumerate() {
                     let (base, slope) = along(k);
                     if let Ok(out) = <&mut [f32; LANES]>::try_from(&mut plane[x0..end]) {
@@ -332,9 +364,28 @@ impl FitGrid {
                     }
                 }
             }
+            if let Some(segments) = segments.as_deref_mut() {
+                segments.push(Segment {
+                    x0,
+                    end,
+                    blend: None,
+                });
+            }
         }
     }
 }
+
+/// A run of a row's pixels: a whole cell of the widest step with its blend per quantity
+/// (`base + frac·slope`, `frac = s / 8`), or pixels whose polynomials are in the row's scratch.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Segment {
+    pub x0: usize,
+    pub end: usize,
+    pub blend: Option<([f32; QUANTITIES], [f32; QUANTITIES])>,
+}
+
+/// Pixels of a whole cell of the widest step, evaluated as one vector.
+pub(super) const SEGMENT_LANES: usize = LANES;
 
 #[cfg(test)]
 mod tests {
