@@ -11,9 +11,10 @@
 //!
 //! Projector distortion moves the coordinate a real projector shows along the ray by a smooth
 //! offset, a polynomial in the shown coordinate ([`super::distortion_fit`]). From 1800 px wide
-//! the polynomials are fitted on a grid of pixels ([`super::fit_grid`]) and each row's are
-//! expanded into a row of scratch (a fifth of the memory; [`super::fit_grid::grid_pays`]);
-//! below, every pixel's is a column of nine planes. The per-pixel work is then a Horner
+//! the polynomials are fitted on a grid of pixels ([`super::fit_grid`]; a fifth of the memory,
+//! [`super::fit_grid::grid_pays`]): a whole 8-px cell's are blended in registers as its depths
+//! are computed, the row's other pixels' are expanded into a row of scratch. Below 1800 px wide
+//! every pixel's is a column of nine planes. The per-pixel work is then a Horner
 //! polynomial in the fit's normalised variable, one division and three products in `f32`, in a
 //! loop over structure-of-array rows that vectorises. `den_i` is not a table: it is affine in
 //! the ray, `den_i = g_i·(d_x, d_y, 1)` with `g_i = Rᵀ·n_i` global, so two products and two sums

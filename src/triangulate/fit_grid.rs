@@ -17,8 +17,9 @@
 //!
 //! A cell stores each quantity as `a + wx·bx + wy·(by + wx·bxy)` (`wx`, `wy` ∈ [0, 1] across
 //! it): per image row the `wy` terms fold into two values per cell, and per pixel one product and
-//! one sum per quantity give its polynomial ([`FitGrid::expand_row`]), into a row of scratch that
-//! stays in cache. Per-pixel polynomials take nine planes (36 B/px, 83 MB at 1920×1200); the
+//! one sum per quantity give its polynomial: into a row of scratch that stays in cache
+//! ([`FitGrid::expand_row`]), or, for a whole cell of 8 px, in registers as the kernel computes
+//! its depths ([`FitGrid::expand_row_into_segments`]). Per-pixel polynomials take nine planes (36 B/px, 83 MB at 1920×1200); the
 //! grid takes 148 B per cell of 8×8 pixels (5.3 MB).
 //!
 //! Every pixel is checked when the grid is built: the blended polynomial, evaluated in `f32` as
