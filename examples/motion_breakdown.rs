@@ -9,7 +9,8 @@
 //!
 //! Settings from the environment, for trying the decoder's parameters: `UNIT_DECAY` (the unit
 //! phasor's filter), `TRANSPORT=1` (carry it along the fine phase), `MIN_SUPPORT`,
-//! `MOTION_DECAY`, `ITERATIONS`, `MOTION_BLOCK` (the motion model's evidence summed over blocks
+//! `MOTION_DECAY`, `MOVING_DECAY` (the moving pixels' wider average of the unit phasor,
+//! `MotionParams::moving_unit_decay`; 0 turns it off), `ITERATIONS`, `MOTION_BLOCK` (the motion model's evidence summed over blocks
 //! of that many pixels square), `REACH` (the sums' reach scale, `DecodeParams::reach_scale`;
 //! the decays are stated at 640 px wide), `EDGE_PHASE`, `EDGE_COLOUR` and `EDGE_CHROMA` (the
 //! edge-aware filters' links, `SmoothingParams`), `MOTION_OFF=1` (the paper's still window),
@@ -121,6 +122,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if let Some(v) = env("ITERATIONS") {
         params.motion.iterations = v as u32;
+    }
+    if let Some(v) = env("MOVING_DECAY") {
+        params.motion.moving_unit_decay = (v > 0.0).then_some(v);
     }
     if let Some(v) = env("MOTION_BLOCK") {
         params.motion.block_px = v as u32;
