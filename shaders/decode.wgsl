@@ -263,13 +263,14 @@ const SEGMENT: u32 = 64u;
 
 // The running sum `s` carried from pixel `src_px` to its linked neighbour `dst_px`: scaled by the
 // decay, and, when transported, its phasor turned by the unit angle's change between them,
-// wrap(φ_0(dst_px) − φ_0(src_px))/n (the series to θ³, as on the CPU; |θ| < π/n).
-fn carry(s: vec3<f32>, src_px: u32, dst_px: u32, g: f32, transported: bool) -> vec3<f32> {
-    if (!transported) {
+// wrap(φ_0(dst_px) − φ_0(src_px))·unit_per_fine (1/n; 0: not turned; the series to θ³, as on
+// the CPU; |θ| < π/n).
+fn carry(s: vec3<f32>, src_px: u32, dst_px: u32, g: f32, unit_per_fine: f32) -> vec3<f32> {
+    if (unit_per_fine == 0.0) {
         return g * s;
     }
     let d = solved[PHASE * P.n + dst_px] - solved[PHASE * P.n + src_px];
-    let theta = (d - TAU * round(d / TAU)) * P.unit_per_fine;
+    let theta = (d - TAU * round(d / TAU)) * unit_per_fine;
     let t2 = theta * theta;
     let c = g * (1.0 - 0.5 * t2);
     let sn = g * theta * (1.0 - t2 / 6.0);
@@ -279,9 +280,9 @@ fn carry(s: vec3<f32>, src_px: u32, dst_px: u32, g: f32, transported: bool) -> v
 // Forward + backward recursion of three planes of `work` along one segment of pixels
 // `first + k·step`, k in [start, end) of a line of `len`, from planes `src` into planes `dst`, at
 // `decay`, warmed up on `halo` pixels, the first two planes turned along the fine phase when
-// `transported`.
+// `unit_per_fine` (1/n) is not 0.
 fn recurse_segment(first: u32, step: u32, len: u32, start: u32, end: u32, bit: u32, src: u32,
-                   dst: u32, decay: f32, halo: u32, transported: bool) {
+                   dst: u32, decay: f32, halo: u32, unit_per_fine: f32) {
     let n = P.n;
     let warm = select(start - halo, 0u, start < halo);
     var f = vec3<f32>(0.0);
@@ -289,7 +290,7 @@ fn recurse_segment(first: u32, step: u32, len: u32, start: u32, end: u32, bit: u
         let i = first + k * step;
         let v = vec3<f32>(work[src * n + i], work[(src + 1u) * n + i], work[(src + 2u) * n + i]);
         if (k > warm) {
-            f = v + carry(f, i - step, i, gain_of(i - step, bit, decay), transported);
+            f = v + carry(f, i - step, i, gain_of(i - step, bit, decay), unit_per_fine);
         } else {
             f = v;
         }
@@ -305,7 +306,7 @@ fn recurse_segment(first: u32, step: u32, len: u32, start: u32, end: u32, bit: u
         let i = first + (k - 1u) * step;
         let v = vec3<f32>(work[src * n + i], work[(src + 1u) * n + i], work[(src + 2u) * n + i]);
         if (k < stop) {
-            b = v + carry(b, i + step, i, gain_of(i, bit, decay), transported);
+            b = v + carry(b, i + step, i, gain_of(i, bit, decay), unit_per_fine);
         } else {
             b = v;
         }
@@ -328,7 +329,7 @@ fn horizontal(@builtin(global_invocation_id) id: vec3<u32>) {
     let start = (id.x % segments) * SEGMENT;
     let end = min(start + SEGMENT, P.width);
     recurse_segment(y * P.width, 1u, P.width, start, end, RIGHT, RE, TMP, P.decay, P.halo,
-        P.unit_per_fine != 0.0);
+        P.unit_per_fine);
 }
 
 // Down the columns: invocation (column, segment), neighbouring invocations on neighbouring
@@ -343,7 +344,7 @@ fn vertical(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let end = min(start + SEGMENT, P.height);
     recurse_segment(x, P.width, P.height, start, end, DOWN, TMP, RE, P.decay, P.halo,
-        P.unit_per_fine != 0.0);
+        P.unit_per_fine);
 }
 
 // Eq. 8 for one frequency: the unwrapped coordinate and the rounding residual.

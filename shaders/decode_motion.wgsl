@@ -12,7 +12,11 @@
 //                 model's decay) of (uu, uk, kk) and (ue, ke, count); then step_rest[_last] or
 //                 step_refine[_last]: the patch's (u, κ), the correction, the next evidence
 //                 or, on the last step, the unit phasor, the reasons and the acceleration
-//   connect, horizontal, vertical, unwrap   as without the model, on the corrected phasors
+//   connect, horizontal, vertical, unwrap   as without the model, on the corrected phasors;
+//                 with the moving pixels' wider average, wide_copy before horizontal keeps the
+//                 corrected unit phasor in the evidence planes, and after vertical
+//                 wide_horizontal/wide_vertical sum it (carried along the fine phase) and
+//                 wide_select gives it to every pixel with a velocity
 //   settle        (decode_stream.wgsl)
 //   jumps         (decode.wgsl)
 //   temporal      (decode_stream.wgsl)
@@ -63,6 +67,11 @@ const M_MAX_STEP: u32 = 84u;
 const M_DECAY: u32 = 85u;
 const M_HALO: u32 = 86u;
 const M_CHECK_TIME: u32 = 87u;
+// The moving pixels' wider unit-phasor average (src/decode/smooth_moving.rs): its decay per
+// pixel, its warm-up and 1/n (0: none).
+const M_WIDE_DECAY: u32 = 88u;
+const M_WIDE_HALO: u32 = 89u;
+const M_WIDE_UNIT_PER_FINE: u32 = 90u;
 
 // Planes of `work` beyond decode.wgsl's: the evidence (ue, ke, count) and its sums' scratch.
 const UE: u32 = 7u;
@@ -569,9 +578,9 @@ fn step_horizontal(@builtin(global_invocation_id) id: vec3<u32>) {
     let first = y * P.width;
     let halo = u32(M[M_HALO]);
     if (which == 0u) {
-        recurse_segment(first, 1u, P.width, start, end, RIGHT, RE, TMP, M[M_DECAY], halo, false);
+        recurse_segment(first, 1u, P.width, start, end, RIGHT, RE, TMP, M[M_DECAY], halo, 0.0);
     } else {
-        recurse_segment(first, 1u, P.width, start, end, RIGHT, UE, EVIDENCE_TMP, M[M_DECAY], halo, false);
+        recurse_segment(first, 1u, P.width, start, end, RIGHT, UE, EVIDENCE_TMP, M[M_DECAY], halo, 0.0);
     }
 }
 
@@ -588,8 +597,63 @@ fn step_vertical(@builtin(global_invocation_id) id: vec3<u32>) {
     let end = min(start + SEGMENT, P.height);
     let halo = u32(M[M_HALO]);
     if (which == 0u) {
-        recurse_segment(x, P.width, P.height, start, end, DOWN, TMP, RE, M[M_DECAY], halo, false);
+        recurse_segment(x, P.width, P.height, start, end, DOWN, TMP, RE, M[M_DECAY], halo, 0.0);
     } else {
-        recurse_segment(x, P.width, P.height, start, end, DOWN, EVIDENCE_TMP, UE, M[M_DECAY], halo, false);
+        recurse_segment(x, P.width, P.height, start, end, DOWN, EVIDENCE_TMP, UE, M[M_DECAY], halo, 0.0);
+    }
+}
+
+// The moving pixels' wider average of the unit phasor (src/decode/smooth_moving.rs): the
+// corrected (re, im, support) copied into the evidence planes, which the last step has
+// finished with, summed there along the fine phase, and taken where the velocity is not 0.
+@compute @workgroup_size(8, 8)
+fn wide_copy(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= P.width || id.y >= P.height) {
+        return;
+    }
+    let n = P.n;
+    let i = id.y * P.width + id.x;
+    work[UE * n + i] = work[RE * n + i];
+    work[KE * n + i] = work[IM * n + i];
+    work[COUNT * n + i] = work[SUPPORT * n + i];
+}
+
+@compute @workgroup_size(64)
+fn wide_horizontal(@builtin(global_invocation_id) id: vec3<u32>) {
+    let segments = (P.width + SEGMENT - 1u) / SEGMENT;
+    let y = id.x / segments;
+    if (y >= P.height) {
+        return;
+    }
+    let start = (id.x % segments) * SEGMENT;
+    let end = min(start + SEGMENT, P.width);
+    recurse_segment(y * P.width, 1u, P.width, start, end, RIGHT, UE, EVIDENCE_TMP,
+        M[M_WIDE_DECAY], u32(M[M_WIDE_HALO]), M[M_WIDE_UNIT_PER_FINE]);
+}
+
+@compute @workgroup_size(64)
+fn wide_vertical(@builtin(global_invocation_id) id: vec3<u32>) {
+    let x = id.x % P.width;
+    let segment = id.x / P.width;
+    let start = segment * SEGMENT;
+    if (start >= P.height) {
+        return;
+    }
+    let end = min(start + SEGMENT, P.height);
+    recurse_segment(x, P.width, P.height, start, end, DOWN, EVIDENCE_TMP, UE,
+        M[M_WIDE_DECAY], u32(M[M_WIDE_HALO]), M[M_WIDE_UNIT_PER_FINE]);
+}
+
+@compute @workgroup_size(8, 8)
+fn wide_select(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= P.width || id.y >= P.height) {
+        return;
+    }
+    let n = P.n;
+    let i = id.y * P.width + id.x;
+    if (state[VELOCITY * n + i] != 0.0) {
+        work[RE * n + i] = work[UE * n + i];
+        work[IM * n + i] = work[KE * n + i];
+        work[SUPPORT * n + i] = work[COUNT * n + i];
     }
 }

@@ -115,7 +115,8 @@ mod tests {
                 out.phase_rad[3 * w * y + x] = fine;
             }
         }
-        out.connect.fill(crate::decode::connect::RIGHT | crate::decode::connect::DOWN);
+        out.connect
+            .fill(crate::decode::connect::RIGHT | crate::decode::connect::DOWN);
     }
 
     #[test]
@@ -141,7 +142,11 @@ mod tests {
         let angle = out.unit_im[moving].atan2(out.unit_re[moving]);
         let own = 0.01 * 20.0 + 0.3;
         assert!((angle - own).abs() < 1e-4, "angle {angle}, own {own}");
-        assert!(out.support[moving] > 20.0, "support {}", out.support[moving]);
+        assert!(
+            out.support[moving] > 20.0,
+            "support {}",
+            out.support[moving]
+        );
     }
 
     #[test]

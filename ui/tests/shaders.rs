@@ -138,4 +138,5 @@ fn the_decode_shader_matches_its_rust_struct() {
     assert_eq!(constant("M_BIAS_NOISE2"), packed - 1);
     assert_eq!(constant("M_ON"), MODEL_WINDOW_OFFSET);
     assert_eq!(constant("M_CHECK_TIME"), MODEL_WINDOW_OFFSET + 11);
+    assert_eq!(constant("M_WIDE_UNIT_PER_FINE"), MODEL_WINDOW_OFFSET + 14);
 }

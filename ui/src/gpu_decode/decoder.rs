@@ -380,8 +380,11 @@ impl GpuDecoder {
         let basis = motion_basis(window.solver, window.frames, window.params);
         let stages = match &basis {
             Some(basis) => {
-                self.motion_first_pass(basis, window.params, out.time_s)?;
-                motion::steps_then_unwrap(window.params.motion.iterations)
+                self.motion_first_pass(basis, window.params, chebyshev_n, out.time_s)?;
+                motion::steps_then_unwrap(
+                    window.params.motion.iterations,
+                    window.params.motion.moving_unit_decay.is_some(),
+                )
             }
             None => {
                 self.clock.still_window();
@@ -421,6 +424,7 @@ impl GpuDecoder {
         &mut self,
         basis: &MotionBasis,
         params: &DecodeParams,
+        chebyshev_n: u32,
         time_s: f64,
     ) -> Result<()> {
         let noise_readback = self
@@ -428,7 +432,7 @@ impl GpuDecoder {
             .as_ref()
             .context("the GPU decoder was set up without the motion model")?;
         let links = self.clock.advance(time_s, basis, params.check_order_jumps);
-        let words = motion::model_words(basis, params, self.width, links);
+        let words = motion::model_words(basis, params, (self.width, chebyshev_n), links);
         self.queue
             .write_buffer(&self.model, 0, bytemuck::cast_slice(&words));
         let mut encoder = self
@@ -454,7 +458,8 @@ impl GpuDecoder {
         })();
         noise_readback.unmap();
         let measured = measured?;
-        let window = motion::window_words(basis, params, self.width, links, measured);
+        let window =
+            motion::window_words(basis, params, (self.width, chebyshev_n), links, measured);
         self.queue.write_buffer(
             &self.model,
             (motion::MODEL_WINDOW_OFFSET * 4) as u64,
@@ -497,6 +502,8 @@ impl GpuDecoder {
                 "vertical" => pass.dispatch_workgroups(groups(segments(w, h)), 1, 1),
                 "step_horizontal" => pass.dispatch_workgroups(groups(2 * segments(h, w)), 1, 1),
                 "step_vertical" => pass.dispatch_workgroups(groups(2 * segments(w, h)), 1, 1),
+                "wide_horizontal" => pass.dispatch_workgroups(groups(segments(h, w)), 1, 1),
+                "wide_vertical" => pass.dispatch_workgroups(groups(segments(w, h)), 1, 1),
                 // One invocation per grid pixel (the grid's kernels read only `id.x`).
                 "noise_grid" | "noise_grid_final" => {
                     pass.dispatch_workgroups(groups(self.grid_len as u32).max(1), 1, 1);

@@ -21,7 +21,7 @@ use tremorscan::decode::smooth::recursion_halo;
 use tremorscan::decode::{motion_noise, DecodeParams, MotionBasis};
 
 /// Words of the shader's model buffer (`M` there).
-pub(super) const MODEL_WORDS: usize = MotionBasis::PACKED_WORDS + 12;
+pub(super) const MODEL_WORDS: usize = MotionBasis::PACKED_WORDS + 15;
 /// Where the window's values start (`M_ON` in the shader).
 pub const MODEL_WINDOW_OFFSET: usize = MotionBasis::PACKED_WORDS;
 /// Planes of `work` with the model (the evidence and its scratch added) and of `state`.
@@ -29,7 +29,7 @@ pub(super) const WORK_PLANES_WITH_MOTION: usize = 13;
 pub(super) const STATE_PLANES: usize = 8;
 
 /// Entry points of the model, beyond the still decode's.
-pub const MOTION_STAGES: [&str; 9] = [
+pub const MOTION_STAGES: [&str; 13] = [
     "noise_grid",
     "step_horizontal",
     "step_vertical",
@@ -39,12 +39,17 @@ pub const MOTION_STAGES: [&str; 9] = [
     "step_refine_last",
     "settle",
     "temporal",
+    "wide_copy",
+    "wide_horizontal",
+    "wide_vertical",
+    "wide_select",
 ];
 
 /// The entry points of a motion window after the noise is known: `iterations` steps (the
-/// evidence's sums, then the step), the still decode's stages on the corrected phasors, with
+/// evidence's sums, then the step), the still decode's stages on the corrected phasors (with
+/// the moving pixels' wider average of the unit phasor around the plain one when `wide`), with
 /// the settling before the spatial jumps and the temporal check after them.
-pub(super) fn steps_then_unwrap(iterations: u32) -> Vec<&'static str> {
+pub(super) fn steps_then_unwrap(iterations: u32, wide: bool) -> Vec<&'static str> {
     let mut stages = Vec::new();
     for i in 0..iterations {
         let last = i + 1 == iterations;
@@ -56,16 +61,15 @@ pub(super) fn steps_then_unwrap(iterations: u32) -> Vec<&'static str> {
             (false, true) => "step_refine_last",
         });
     }
-    stages.extend([
-        "connect",
-        "horizontal",
-        "vertical",
-        "unwrap",
-        "settle",
-        "jumps",
-        "temporal",
-        "noise_grid_final",
-    ]);
+    stages.push("connect");
+    if wide {
+        stages.push("wide_copy");
+    }
+    stages.extend(["horizontal", "vertical"]);
+    if wide {
+        stages.extend(["wide_horizontal", "wide_vertical", "wide_select"]);
+    }
+    stages.extend(["unwrap", "settle", "jumps", "temporal", "noise_grid_final"]);
     stages
 }
 
@@ -148,34 +152,40 @@ pub(super) fn model_off() -> [f32; MODEL_WORDS] {
     [0.0; MODEL_WORDS]
 }
 
-/// The model buffer of a motion window of `basis` with `params` in an image `width_px` wide,
-/// before its noise is known (the step constants at the configured noise; [`window_words`]
-/// replaces them).
+/// The model buffer of a motion window of `basis` with `params` in an image `width_px` wide
+/// (a Chebyshev sequence of order `chebyshev_n`), before its noise is known (the step
+/// constants at the configured noise; [`window_words`] replaces them).
 pub(super) fn model_words(
     basis: &MotionBasis,
     params: &DecodeParams,
-    width_px: usize,
+    (width_px, chebyshev_n): (usize, u32),
     links: WindowLinks,
 ) -> [f32; MODEL_WORDS] {
     let mut words = [0.0; MODEL_WORDS];
     words[..MotionBasis::PACKED_WORDS].copy_from_slice(&basis.packed());
-    words[MODEL_WINDOW_OFFSET..]
-        .copy_from_slice(&window_words(basis, params, width_px, links, None));
+    words[MODEL_WINDOW_OFFSET..].copy_from_slice(&window_words(
+        basis,
+        params,
+        (width_px, chebyshev_n),
+        links,
+        None,
+    ));
     words
 }
 
 /// The window's values (from `M_ON` on), with the noise the window's grid showed (`measured`),
-/// in an image `width_px` wide.
+/// in an image `width_px` wide of a Chebyshev sequence of order `chebyshev_n`.
 pub(super) fn window_words(
     basis: &MotionBasis,
     params: &DecodeParams,
-    width_px: usize,
+    (width_px, chebyshev_n): (usize, u32),
     links: WindowLinks,
     measured: Option<f32>,
 ) -> [f32; MODEL_WORDS - MODEL_WINDOW_OFFSET] {
     let noise_gray = significance_noise_gray(measured, params.camera_noise_gray);
     let step = StepConstants::new(basis, noise_gray, links.previous_s);
     let flag = |b: bool| if b { 1.0 } else { 0.0 };
+    let wide = params.moving_unit_decay_at(width_px);
     [
         1.0,
         step.prior_u,
@@ -189,6 +199,9 @@ pub(super) fn window_words(
         params.motion_decay_at(width_px),
         recursion_halo(params.motion_decay_at(width_px)) as f32,
         flag(params.check_order_jumps),
+        wide.unwrap_or(0.0),
+        wide.map_or(0.0, |d| recursion_halo(d) as f32),
+        wide.map_or(0.0, |_| 1.0 / chebyshev_n.max(1) as f32),
     ]
 }
 
@@ -207,7 +220,7 @@ mod tests {
 
     #[test]
     fn steps_end_with_the_last_step_and_the_time_checks() {
-        let stages = steps_then_unwrap(2);
+        let stages = steps_then_unwrap(2, false);
         assert_eq!(stages[2], "step_rest");
         assert_eq!(stages[5], "step_refine_last");
         let temporal = stages.iter().position(|s| *s == "temporal");
@@ -217,6 +230,19 @@ mod tests {
             "{stages:?}"
         );
         assert_eq!(stages.last(), Some(&"noise_grid_final"));
-        assert_eq!(steps_then_unwrap(1)[2], "step_rest_last");
+        assert_eq!(steps_then_unwrap(1, false)[2], "step_rest_last");
+        let wide = steps_then_unwrap(2, true);
+        let at = |name: &str| wide.iter().position(|s| *s == name);
+        let (copy, plain, sum, select, unwrap) = (
+            at("wide_copy"),
+            at("horizontal"),
+            at("wide_horizontal"),
+            at("wide_select"),
+            at("unwrap"),
+        );
+        assert!(
+            copy < plain && plain < sum && sum < select && select < unwrap && copy.is_some(),
+            "{wide:?}"
+        );
     }
 }
