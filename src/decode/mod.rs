@@ -526,7 +526,10 @@ pub(crate) fn finish_window(
             decay: params.unit_decay_at(out.width),
             ..params.smoothing
         };
-        let moving = motion_basis.and(params.moving_unit_decay_at(out.width));
+        // A still scene (no velocity anywhere) skips the second average: it would change nothing.
+        let moving = motion_basis
+            .and(params.moving_unit_decay_at(out.width))
+            .filter(|_| smooth_moving::any_moving(out));
         match (moving, chebyshev_n) {
             (Some(moving_decay), Some(n)) => {
                 smooth_moving::keep_unsmoothed(out);

@@ -32,6 +32,11 @@ use super::smooth_transport::{smooth_transported, Transport};
 use super::DecodeOutput;
 use rayon::prelude::*;
 
+/// Whether any pixel has a velocity, so that the wide average would be taken somewhere.
+pub(crate) fn any_moving(out: &DecodeOutput) -> bool {
+    out.velocity_px_per_s.par_iter().any(|&v| v != 0.0)
+}
+
 /// Copies the unsmoothed unit phasor and support into the evidence planes, which the wide
 /// average will sum. Call after the motion model's last step, before the narrow average.
 pub(crate) fn keep_unsmoothed(out: &mut DecodeOutput) {
