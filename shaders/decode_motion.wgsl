@@ -16,7 +16,8 @@
 //                 with the moving pixels' wider average, wide_copy before horizontal keeps the
 //                 corrected unit phasor in the evidence planes, and after vertical
 //                 wide_horizontal/wide_vertical sum it (carried along the fine phase) and
-//                 wide_select gives it to every pixel with a velocity
+//                 wide_select gives it to every pixel with a velocity (or refuses the pixel
+//                 where the narrow one is sure of other fringe orders)
 //   settle        (decode_stream.wgsl)
 //   jumps         (decode.wgsl)
 //   temporal      (decode_stream.wgsl)
@@ -605,7 +606,8 @@ fn step_vertical(@builtin(global_invocation_id) id: vec3<u32>) {
 
 // The moving pixels' wider average of the unit phasor (src/decode/smooth_moving.rs): the
 // corrected (re, im, support) copied into the evidence planes, which the last step has
-// finished with, summed there along the fine phase, and taken where the velocity is not 0.
+// finished with, summed there along the fine phase, and taken where the velocity is not 0
+// unless the narrow average is sure of other fringe orders.
 @compute @workgroup_size(8, 8)
 fn wide_copy(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= P.width || id.y >= P.height) {
@@ -651,9 +653,28 @@ fn wide_select(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let n = P.n;
     let i = id.y * P.width + id.x;
-    if (state[VELOCITY * n + i] != 0.0) {
-        work[RE * n + i] = work[UE * n + i];
-        work[IM * n + i] = work[KE * n + i];
-        work[SUPPORT * n + i] = work[COUNT * n + i];
+    if (state[VELOCITY * n + i] == 0.0) {
+        return;
     }
+    // The narrow average sure of its fringe orders and the wide one picking others: neither
+    // (smooth_moving.rs, Agreement).
+    let narrow = cps_unwrap(unit_coarse(work[RE * n + i], work[IM * n + i]), i);
+    let sure = narrow.y <= P.max_rounding_residual && work[SUPPORT * n + i] >= P.min_support;
+    if (sure) {
+        let wide = cps_unwrap(unit_coarse(work[UE * n + i], work[KE * n + i]), i);
+        if (abs(wide.x - narrow.x) >= P.half_period_px) {
+            bits[FLAGS * n + i] |= UNWRAP_MARGIN;
+            return;
+        }
+    }
+    work[RE * n + i] = work[UE * n + i];
+    work[IM * n + i] = work[KE * n + i];
+    work[SUPPORT * n + i] = work[COUNT * n + i];
+}
+
+// The coarse coordinate of a unit phasor, as `unwrap` takes it.
+fn unit_coarse(re: f32, im: f32) -> f32 {
+    var angle = atan2_poly(im, re);
+    angle = select(angle, angle + TAU, angle < -0.5 * PI);
+    return angle * P.inv_f_unit;
 }

@@ -256,6 +256,8 @@ impl Default for SmoothingParams {
             // of the valid pixels more than 2 mm off at 0.8 (0.05 % at 0.7; 0.14 % at 0.85),
             // and a window with a corrupted frame gives 0.56 % of the image a wrong fringe
             // order (0.32 % at 0.7; `tests/validity.rs` allows 0.5 %) (docs/accuracy.md, Motion).
+            // Both are still scenes: the pixels the motion model finds moving take a wider,
+            // transported average instead (`MotionParams::moving_unit_decay`).
             decay: 0.7,
             edge_phase_rad: 1.0,
             edge_colour_ratio: 0.3,
@@ -534,7 +536,15 @@ pub(crate) fn finish_window(
             (Some(moving_decay), Some(n)) => {
                 smooth_moving::keep_unsmoothed(out);
                 smooth::smooth_unit_phasor(out, &smoothing, chebyshev_n);
-                smooth_moving::smooth_for_moving(out, moving_decay, n);
+                let f = &solver.frequency_rad_per_px;
+                let check = smooth_moving::Agreement {
+                    cps: unwrap::CpsMaps::new(f, &solver.noise_gain),
+                    inv_f1: 1.0 / (f[0] / n as f32),
+                    max_rounding_residual: params.max_rounding_residual,
+                    min_support: params.smoothing.min_support,
+                    half_period_px: std::f32::consts::PI / f[0],
+                };
+                smooth_moving::smooth_for_moving(out, moving_decay, n, &check);
             }
             _ => smooth::smooth_unit_phasor(out, &smoothing, chebyshev_n),
         }
