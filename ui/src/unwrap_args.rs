@@ -32,10 +32,11 @@ pub struct UnwrapArgs {
 )]
 #[serde(rename_all = "snake_case")]
 pub enum CoarseAverageArg {
-    /// The unit phasor summed as it is, decay 0.7 (the default).
+    /// The unit phasor summed as it is, decay 0.7 (the default). Pixels the motion model finds
+    /// moving take a wider average of their own either way (`MotionParams::moving_unit_decay`).
     #[default]
     Plain,
-    /// Carried along the fine phase, decay 0.8: keeps more of a moving, swaying hand, with more
+    /// Carried along the fine phase, decay 0.8: keeps a little more of a swaying hand, with more
     /// made-up points behind a soft lens and after a corrupted frame (docs/accuracy.md, Motion).
     Transported,
 }

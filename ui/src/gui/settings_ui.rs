@@ -212,15 +212,18 @@ pub fn settings_window_ui(ctx: &egui::Context, app: &mut TremorApp) {
                     );
                     ui.horizontal(|ui| {
                         ui.radio_value(&mut d.coarse_average, CoarseAverageArg::Plain, "plain")
-                            .on_hover_text("the default: the unit phasor summed as it is");
+                            .on_hover_text(
+                                "the default: the unit phasor summed as it is (moving skin \
+                                 takes a wider average of its own either way)",
+                            );
                         ui.radio_value(
                             &mut d.coarse_average,
                             CoarseAverageArg::Transported,
                             "transported",
                         )
                         .on_hover_text(
-                            "carried along the fine phase: keeps more of a moving, swaying hand, \
-                             with more made-up points behind a soft lens (docs/accuracy.md)",
+                            "carried along the fine phase: keeps a little more of a swaying \
+                             hand, with more made-up points behind a soft lens (docs/accuracy.md)",
                         );
                     });
                     ui.end_row();
