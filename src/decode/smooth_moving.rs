@@ -25,7 +25,8 @@
 //! reference: the fingertip's peak-to-peak came out 30 % high. So a moving pixel takes the wide
 //! average only where the narrow one is unsure (its rounding residual beyond the margin, or too
 //! little support) or picks the same fringe orders; where the narrow one is sure and the two
-//! pick different orders, the pixel is refused for the rounding margin ([`Agreement`]): two
+//! pick different orders, the pixel is refused for the rounding margin ([`Agreement`],
+//! `select_row`): two
 //! estimates of one coarse coordinate that contradict each other give no depth.
 //!
 //! **How.** Before the narrow average overwrites the unit phasor and its support, they are
@@ -99,26 +100,81 @@ pub(crate) fn smooth_for_moving(out: &mut DecodeOutput, decay: f32, n: u32, chec
         .zip(wide_re.par_chunks(w))
         .zip(wide_im.par_chunks(w))
         .zip(wide_support.par_chunks(w))
+        .zip(out.smooth_tmp.par_chunks_mut(2 * w))
         .for_each(
-            |(((((((((re, im), support), flags), velocity), phase), amp), wre), wim), wsup)| {
-                for x in 0..re.len() {
-                    if velocity[x] == 0.0 {
-                        continue;
-                    }
-                    let ph = [phase[x], phase[w + x], phase[2 * w + x]];
-                    let am = [amp[x], amp[w + x], amp[2 * w + x]];
-                    let narrow = (re[x], im[x], support[x]);
-                    match check.choose(narrow, (wre[x], wim[x], wsup[x]), ph, am) {
-                        Choice::Wide => {
-                            re[x] = wre[x];
-                            im[x] = wim[x];
-                            support[x] = wsup[x];
-                        }
-                        Choice::Neither => flags[x] |= super::invalid::UNWRAP_MARGIN,
-                    }
-                }
+            |((((((((((re, im), support), flags), velocity), phase), amp), wre), wim), wsup), tmp)| {
+                let row = SelectRow {
+                    narrow: [re, im, support],
+                    flags,
+                    velocity,
+                    phase,
+                    amplitude: amp,
+                    wide: [wre, wim, wsup],
+                    scratch: tmp,
+                };
+                select_row(check, row);
             },
         );
+}
+
+/// One row of the decision: the narrow phasor and support (replaced where the wide ones are
+/// taken), the flags, the velocity, the row-planar phases and amplitudes, the wide sums and two
+/// rows of scratch.
+struct SelectRow<'a> {
+    narrow: [&'a mut [f32]; 3],
+    flags: &'a mut [u16],
+    velocity: &'a [f32],
+    phase: &'a [f32],
+    amplitude: &'a [f32],
+    wide: [&'a [f32]; 3],
+    scratch: &'a mut [f32],
+}
+
+/// The decision of [`Agreement`] for a whole row, in loops without branches or calls so that
+/// they vectorise: a moving pixel takes the wide phasor and support unless the narrow ones are
+/// sure of other fringe orders, where it is flagged instead.
+#[multiversion::multiversion(targets(
+    "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
+    "x86_64+avx2+fma",
+    "x86_64+sse4.1"
+))]
+fn select_row(check: &Agreement, row: SelectRow<'_>) {
+    let w = row.flags.len();
+    let [re, im, support] = row.narrow;
+    let (re, im, support) = (&mut re[..w], &mut im[..w], &mut support[..w]);
+    let [wre, wim, wsup] = row.wide;
+    let (wre, wim, wsup) = (&wre[..w], &wim[..w], &wsup[..w]);
+    let (flags, velocity) = (&mut row.flags[..w], &row.velocity[..w]);
+    let (ph0, ph1, ph2) = (
+        &row.phase[..w],
+        &row.phase[w..2 * w],
+        &row.phase[2 * w..3 * w],
+    );
+    let (am0, am1, am2) = (
+        &row.amplitude[..w],
+        &row.amplitude[w..2 * w],
+        &row.amplitude[2 * w..3 * w],
+    );
+    let (narrow_px, wide_px) = row.scratch.split_at_mut(w);
+    let wide_px = &mut wide_px[..w];
+    for x in 0..w {
+        narrow_px[x] = unit_angle(re[x], im[x]) * check.inv_f1;
+        wide_px[x] = unit_angle(wre[x], wim[x]) * check.inv_f1;
+    }
+    for x in 0..w {
+        let (phase, amplitude) = ([ph0[x], ph1[x], ph2[x]], [am0[x], am1[x], am2[x]]);
+        let n = check.cps.unwrap(narrow_px[x], phase, amplitude);
+        let v = check.cps.unwrap(wide_px[x], phase, amplitude);
+        let sure = (n.residual <= check.max_rounding_residual) & (support[x] >= check.min_support);
+        let differ = (v.combined - n.combined).abs() >= check.half_period_px;
+        let moving = velocity[x] != 0.0;
+        let refuse = moving & sure & differ;
+        let take = moving & !refuse;
+        re[x] = if take { wre[x] } else { re[x] };
+        im[x] = if take { wim[x] } else { im[x] };
+        support[x] = if take { wsup[x] } else { support[x] };
+        flags[x] |= if refuse { super::invalid::UNWRAP_MARGIN } else { 0 };
+    }
 }
 
 /// What decides between the two averages at a moving pixel: the wide one, unless the narrow
@@ -132,42 +188,6 @@ pub(crate) struct Agreement {
     pub min_support: f32,
     /// Half the finest fringe period, projector px.
     pub half_period_px: f32,
-}
-
-/// The coarse coordinate a moving pixel takes.
-enum Choice {
-    Wide,
-    /// The two averages pick different fringe orders and the narrow one is sure of its own:
-    /// the pixel is refused for the rounding margin rather than given either.
-    Neither,
-}
-
-impl Agreement {
-    fn choose(
-        &self,
-        narrow: (f32, f32, f32),
-        wide: (f32, f32, f32),
-        phase: [f32; 3],
-        amplitude: [f32; 3],
-    ) -> Choice {
-        let n = self.cps.unwrap(
-            unit_angle(narrow.0, narrow.1) * self.inv_f1,
-            phase,
-            amplitude,
-        );
-        let confident = n.residual <= self.max_rounding_residual && narrow.2 >= self.min_support;
-        if !confident {
-            return Choice::Wide;
-        }
-        let v = self
-            .cps
-            .unwrap(unit_angle(wide.0, wide.1) * self.inv_f1, phase, amplitude);
-        if (v.combined - n.combined).abs() < self.half_period_px {
-            Choice::Wide
-        } else {
-            Choice::Neither
-        }
-    }
 }
 
 #[cfg(test)]
@@ -221,25 +241,59 @@ mod tests {
         let check = agreement(n);
         let f1 = std::f32::consts::PI / 912.0;
         let x_px = 400.3f32;
-        let phase =
-            [n, n - 1, n - 2].map(|k| (k as f32 * f1 * x_px).rem_euclid(std::f32::consts::TAU));
-        let amplitude = [50.0; 3];
-        let phasor = |x: f32, support: f32| ((f1 * x).cos(), (f1 * x).sin(), support);
         let period_px = 2.0 * check.half_period_px;
-        let sure = phasor(x_px, 20.0);
-        // The same fringe orders: the wide average is taken.
-        let agrees = check.choose(sure, phasor(x_px + 0.2 * period_px, 60.0), phase, amplitude);
-        assert!(matches!(agrees, Choice::Wide));
-        // A period apart, with the narrow one sure: neither.
-        let contradicts = check.choose(sure, phasor(x_px + period_px, 60.0), phase, amplitude);
-        assert!(matches!(contradicts, Choice::Neither));
-        // The narrow one unsure (a rounding residual near ½, or too little support): the wide.
-        let unsure = phasor(x_px + 0.45 * period_px, 20.0);
-        let rescued = check.choose(unsure, phasor(x_px + period_px, 60.0), phase, amplitude);
-        assert!(matches!(rescued, Choice::Wide));
-        let thin = phasor(x_px, 5.0);
-        let rescued = check.choose(thin, phasor(x_px + period_px, 60.0), phase, amplitude);
-        assert!(matches!(rescued, Choice::Wide));
+        // Six pixels of one row, all at `x_px`: (narrow at, its support, wide at, velocity).
+        let cases = [
+            (x_px, 20.0, x_px + 0.2 * period_px, 50.0), // the same orders: the wide one
+            (x_px, 20.0, x_px + period_px, 50.0),       // a period apart, narrow sure: neither
+            (x_px + 0.45 * period_px, 20.0, x_px + period_px, 50.0), // narrow unsure: wide
+            (x_px, 5.0, x_px + period_px, 50.0),        // narrow with little support: wide
+            (x_px, 20.0, x_px + period_px, 0.0),        // still: the narrow one, unflagged
+            (x_px, 20.0, x_px + period_px, -300.0),     // either sign of velocity
+        ];
+        let w = cases.len();
+        let at = |x: f32| ((f1 * x).cos(), (f1 * x).sin());
+        let mut narrow = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        let mut wide = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        let mut velocity = vec![0.0; w];
+        for (i, &(nx, ns, wx, v)) in cases.iter().enumerate() {
+            (narrow[0][i], narrow[1][i]) = at(nx);
+            narrow[2][i] = ns;
+            (wide[0][i], wide[1][i]) = at(wx);
+            wide[2][i] = 60.0;
+            velocity[i] = v;
+        }
+        let mut phase = vec![0.0; 3 * w];
+        for (slot, k) in [n, n - 1, n - 2].into_iter().enumerate() {
+            let fine = (k as f32 * f1 * x_px).rem_euclid(std::f32::consts::TAU);
+            phase[slot * w..(slot + 1) * w].fill(fine);
+        }
+        let amplitude = vec![50.0; 3 * w];
+        let mut flags = vec![0u16; w];
+        let mut scratch = vec![0.0; 2 * w];
+        let before = narrow.clone();
+        let [re, im, support] = &mut narrow;
+        select_row(
+            &check,
+            SelectRow {
+                narrow: [re, im, support],
+                flags: &mut flags,
+                velocity: &velocity,
+                phase: &phase,
+                amplitude: &amplitude,
+                wide: [&wide[0], &wide[1], &wide[2]],
+                scratch: &mut scratch,
+            },
+        );
+        let margin = crate::decode::invalid::UNWRAP_MARGIN;
+        let took_wide = |i: usize| narrow[2][i] == 60.0 && narrow[0][i] == wide[0][i];
+        let kept_narrow = |i: usize| (0..3).all(|p| narrow[p][i] == before[p][i]);
+        assert!(took_wide(0) && flags[0] == 0);
+        assert!(kept_narrow(1) && flags[1] == margin);
+        assert!(took_wide(2) && flags[2] == 0);
+        assert!(took_wide(3) && flags[3] == 0);
+        assert!(kept_narrow(4) && flags[4] == 0);
+        assert!(kept_narrow(5) && flags[5] == margin);
     }
 
     #[test]
