@@ -318,33 +318,41 @@ fn recurse_segment(first: u32, step: u32, len: u32, start: u32, end: u32, bit: u
     }
 }
 
-// Along the rows: invocation (segment, row); from (re, im, support) into tmp.
-@compute @workgroup_size(64)
-fn horizontal(@builtin(global_invocation_id) id: vec3<u32>) {
+// Along the rows: invocation `id` is (segment, row); from planes `src` into `dst`.
+fn horizontal_segment(id: u32, src: u32, dst: u32, decay: f32, halo: u32, unit_per_fine: f32) {
     let segments = (P.width + SEGMENT - 1u) / SEGMENT;
-    let y = id.x / segments;
+    let y = id / segments;
     if (y >= P.height) {
         return;
     }
-    let start = (id.x % segments) * SEGMENT;
+    let start = (id % segments) * SEGMENT;
     let end = min(start + SEGMENT, P.width);
-    recurse_segment(y * P.width, 1u, P.width, start, end, RIGHT, RE, TMP, P.decay, P.halo,
-        P.unit_per_fine);
+    recurse_segment(y * P.width, 1u, P.width, start, end, RIGHT, src, dst, decay, halo,
+        unit_per_fine);
 }
 
-// Down the columns: invocation (column, segment), neighbouring invocations on neighbouring
-// columns; from tmp back into (re, im, support).
-@compute @workgroup_size(64)
-fn vertical(@builtin(global_invocation_id) id: vec3<u32>) {
-    let x = id.x % P.width;
-    let segment = id.x / P.width;
-    let start = segment * SEGMENT;
+// Down the columns: invocation `id` is (column, segment), neighbouring invocations on
+// neighbouring columns; from planes `src` into `dst`.
+fn vertical_segment(id: u32, src: u32, dst: u32, decay: f32, halo: u32, unit_per_fine: f32) {
+    let x = id % P.width;
+    let start = (id / P.width) * SEGMENT;
     if (start >= P.height) {
         return;
     }
     let end = min(start + SEGMENT, P.height);
-    recurse_segment(x, P.width, P.height, start, end, DOWN, TMP, RE, P.decay, P.halo,
-        P.unit_per_fine);
+    recurse_segment(x, P.width, P.height, start, end, DOWN, src, dst, decay, halo,
+        unit_per_fine);
+}
+
+// The unit phasor's average: (re, im, support) along the rows into tmp, down the columns back.
+@compute @workgroup_size(64)
+fn horizontal(@builtin(global_invocation_id) id: vec3<u32>) {
+    horizontal_segment(id.x, RE, TMP, P.decay, P.halo, P.unit_per_fine);
+}
+
+@compute @workgroup_size(64)
+fn vertical(@builtin(global_invocation_id) id: vec3<u32>) {
+    vertical_segment(id.x, TMP, RE, P.decay, P.halo, P.unit_per_fine);
 }
 
 // Eq. 8 for one frequency: the unwrapped coordinate and the rounding residual.

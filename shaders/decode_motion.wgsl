@@ -622,28 +622,14 @@ fn wide_copy(@builtin(global_invocation_id) id: vec3<u32>) {
 
 @compute @workgroup_size(64)
 fn wide_horizontal(@builtin(global_invocation_id) id: vec3<u32>) {
-    let segments = (P.width + SEGMENT - 1u) / SEGMENT;
-    let y = id.x / segments;
-    if (y >= P.height) {
-        return;
-    }
-    let start = (id.x % segments) * SEGMENT;
-    let end = min(start + SEGMENT, P.width);
-    recurse_segment(y * P.width, 1u, P.width, start, end, RIGHT, UE, EVIDENCE_TMP,
-        M[M_WIDE_DECAY], u32(M[M_WIDE_HALO]), M[M_WIDE_UNIT_PER_FINE]);
+    horizontal_segment(id.x, UE, EVIDENCE_TMP, M[M_WIDE_DECAY], u32(M[M_WIDE_HALO]),
+        M[M_WIDE_UNIT_PER_FINE]);
 }
 
 @compute @workgroup_size(64)
 fn wide_vertical(@builtin(global_invocation_id) id: vec3<u32>) {
-    let x = id.x % P.width;
-    let segment = id.x / P.width;
-    let start = segment * SEGMENT;
-    if (start >= P.height) {
-        return;
-    }
-    let end = min(start + SEGMENT, P.height);
-    recurse_segment(x, P.width, P.height, start, end, DOWN, EVIDENCE_TMP, UE,
-        M[M_WIDE_DECAY], u32(M[M_WIDE_HALO]), M[M_WIDE_UNIT_PER_FINE]);
+    vertical_segment(id.x, EVIDENCE_TMP, UE, M[M_WIDE_DECAY], u32(M[M_WIDE_HALO]),
+        M[M_WIDE_UNIT_PER_FINE]);
 }
 
 @compute @workgroup_size(8, 8)

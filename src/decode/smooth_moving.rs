@@ -102,7 +102,10 @@ pub(crate) fn smooth_for_moving(out: &mut DecodeOutput, decay: f32, n: u32, chec
         .zip(wide_support.par_chunks(w))
         .zip(out.smooth_tmp.par_chunks_mut(2 * w))
         .for_each(
-            |((((((((((re, im), support), flags), velocity), phase), amp), wre), wim), wsup), tmp)| {
+            |(
+                (((((((((re, im), support), flags), velocity), phase), amp), wre), wim), wsup),
+                tmp,
+            )| {
                 let row = SelectRow {
                     narrow: [re, im, support],
                     flags,
@@ -173,7 +176,11 @@ fn select_row(check: &Agreement, row: SelectRow<'_>) {
         re[x] = if take { wre[x] } else { re[x] };
         im[x] = if take { wim[x] } else { im[x] };
         support[x] = if take { wsup[x] } else { support[x] };
-        flags[x] |= if refuse { super::invalid::UNWRAP_MARGIN } else { 0 };
+        flags[x] |= if refuse {
+            super::invalid::UNWRAP_MARGIN
+        } else {
+            0
+        };
     }
 }
 
