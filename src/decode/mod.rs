@@ -534,17 +534,8 @@ pub(crate) fn finish_window(
             .filter(|_| smooth_moving::any_moving(out));
         match (moving, chebyshev_n) {
             (Some(moving_decay), Some(n)) => {
-                smooth_moving::keep_unsmoothed(out);
-                smooth::smooth_unit_phasor(out, &smoothing, chebyshev_n);
-                let f = &solver.frequency_rad_per_px;
-                let check = smooth_moving::Agreement {
-                    cps: unwrap::CpsMaps::new(f, &solver.noise_gain),
-                    inv_f1: 1.0 / (f[0] / n as f32),
-                    max_rounding_residual: params.max_rounding_residual,
-                    min_support: params.smoothing.min_support,
-                    half_period_px: std::f32::consts::PI / f[0],
-                };
-                smooth_moving::smooth_for_moving(out, moving_decay, n, &check);
+                let check = smooth_moving::Agreement::new(solver, params, n);
+                smooth_moving::smooth_both(out, &smoothing, moving_decay, &check);
             }
             _ => smooth::smooth_unit_phasor(out, &smoothing, chebyshev_n),
         }

@@ -40,11 +40,24 @@
 //! with the wide one at every moving pixel (decay 0.95); 94.9 % and 0.21 % with the decision.
 //! Every figure in docs/accuracy.md.
 
-use super::smooth::{unit_angle, Planes};
+use super::smooth::{smooth_unit_phasor, unit_angle, Planes};
 use super::smooth_transport::{smooth_transported, Transport};
 use super::unwrap::CpsMaps;
-use super::DecodeOutput;
+use super::{DecodeOutput, DecodeParams, SmoothingParams, WindowSolver};
 use rayon::prelude::*;
+
+/// Stage 2 of a window where something moves: the narrow average (`narrow`) for every pixel,
+/// and the wide one at `wide_decay` per camera px for the moving pixels, as `check` decides.
+pub(crate) fn smooth_both(
+    out: &mut DecodeOutput,
+    narrow: &SmoothingParams,
+    wide_decay: f32,
+    check: &Agreement,
+) {
+    keep_unsmoothed(out);
+    smooth_unit_phasor(out, narrow, Some(check.chebyshev_n));
+    smooth_for_moving(out, wide_decay, check.chebyshev_n, check);
+}
 
 /// Whether any pixel has a velocity, so that the wide average would be taken somewhere.
 pub(crate) fn any_moving(out: &DecodeOutput) -> bool {
@@ -53,7 +66,7 @@ pub(crate) fn any_moving(out: &DecodeOutput) -> bool {
 
 /// Copies the unsmoothed unit phasor and support into the evidence planes, which the wide
 /// average will sum. Call after the motion model's last step, before the narrow average.
-pub(crate) fn keep_unsmoothed(out: &mut DecodeOutput) {
+fn keep_unsmoothed(out: &mut DecodeOutput) {
     let n = out.width * out.height;
     let (re, rest) = out.motion_evidence.split_at_mut(n);
     let (im, support) = rest.split_at_mut(n);
@@ -66,7 +79,7 @@ pub(crate) fn keep_unsmoothed(out: &mut DecodeOutput) {
 /// phase of a Chebyshev sequence of order `n` (over the links the narrow average used), and
 /// gives every pixel with a velocity the wide phasor and support, or refuses it where the two
 /// averages disagree ([`Agreement`]).
-pub(crate) fn smooth_for_moving(out: &mut DecodeOutput, decay: f32, n: u32, check: &Agreement) {
+fn smooth_for_moving(out: &mut DecodeOutput, decay: f32, n: u32, check: &Agreement) {
     let (w, h) = (out.width, out.height);
     let pixels = w * h;
     let (re, rest) = out.motion_evidence.split_at_mut(pixels);
@@ -195,6 +208,24 @@ pub(crate) struct Agreement {
     pub min_support: f32,
     /// Half the finest fringe period, projector px.
     pub half_period_px: f32,
+    /// The Chebyshev sequence's order (slot 0's frequency over the unit's).
+    pub chebyshev_n: u32,
+}
+
+impl Agreement {
+    /// The decision for windows of `solver` decoded with `params`, of a Chebyshev sequence of
+    /// order `n`: the same maps, margin and support as the unwrap that follows.
+    pub(crate) fn new(solver: &WindowSolver, params: &DecodeParams, n: u32) -> Self {
+        let f = &solver.frequency_rad_per_px;
+        Self {
+            cps: CpsMaps::new(f, &solver.noise_gain),
+            inv_f1: 1.0 / (f[0] / n as f32),
+            max_rounding_residual: params.max_rounding_residual,
+            min_support: params.smoothing.min_support,
+            half_period_px: std::f32::consts::PI / f[0],
+            chebyshev_n: n,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -239,6 +270,7 @@ mod tests {
             max_rounding_residual: 0.25,
             min_support: 15.0,
             half_period_px: std::f32::consts::PI / f[0],
+            chebyshev_n: n,
         }
     }
 
