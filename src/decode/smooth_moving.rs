@@ -26,8 +26,8 @@
 //! average only where the narrow one is unsure (its rounding residual beyond the margin, or too
 //! little support) or picks the same fringe orders; where the narrow one is sure and the two
 //! pick different orders, the pixel is refused for the rounding margin ([`Agreement`],
-//! `select_row`): two
-//! estimates of one coarse coordinate that contradict each other give no depth.
+//! `select_row`): two estimates of one coarse coordinate that contradict each other give no
+//! depth.
 //!
 //! **How.** Before the narrow average overwrites the unit phasor and its support, they are
 //! copied into the motion model's evidence planes, which its last step has finished with
