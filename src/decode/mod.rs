@@ -210,13 +210,9 @@ impl Default for MotionParams {
             decay: 0.8,
             iterations: 2,
             block_px: 1,
-            // The swaying hand's flanks, where the still average's coarse coordinate is off
-            // (docs/accuracy.md, Motion, stop 48): on the sweep's 10 mm tremor with 4 mm of
-            // sway, 90.4 % of the moving skin kept with 0.75 % gross errors without it; at 0.9,
-            // 0.95, 0.97 and 0.99, 94.6, 94.9, 95.2 and 95.7 % with 0.28, 0.21, 0.17 and 0.10 %,
-            // the kept skin's RMS 0.192 mm without, 0.204–0.213 mm with. Without sway at 10 mm,
-            // 97.35 % / 0.28 % / 0.160 mm without; 97.36 / 0.19 / 0.162, 97.72 / 0.14 / 0.166,
-            // 98.13 / 0.09 / 0.169 and 98.50 / 0.04 / 0.173 with (the issue asks ≤ 0.17 mm).
+            // 10 mm tremor with 4 mm of sway: 90.4 % of the moving skin kept, 0.75 % gross
+            // without it, 94.9 % and 0.21 % at 0.95; wider keeps more but takes the 10 mm RMS
+            // past 0.17 mm (0.99: 0.173). The decay study: docs/accuracy.md, Motion, stop 48.
             moving_unit_decay: Some(0.95),
         }
     }
