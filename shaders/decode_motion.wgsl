@@ -639,7 +639,10 @@ fn wide_select(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let n = P.n;
     let i = id.y * P.width + id.x;
+    // Where the two contradict each other, the wide average's coarse coordinate stays in UE for
+    // `settle`, marked by KE = 1; KE = 0 elsewhere.
     if (state[VELOCITY * n + i] == 0.0) {
+        work[KE * n + i] = 0.0;
         return;
     }
     // The narrow average sure of its fringe orders and the wide one picking others: neither
@@ -647,15 +650,19 @@ fn wide_select(@builtin(global_invocation_id) id: vec3<u32>) {
     let narrow = cps_unwrap(unit_coarse(work[RE * n + i], work[IM * n + i]), i);
     let sure = narrow.y <= P.max_rounding_residual && work[SUPPORT * n + i] >= P.min_support;
     if (sure) {
-        let wide = cps_unwrap(unit_coarse(work[UE * n + i], work[KE * n + i]), i);
+        let wide_px = unit_coarse(work[UE * n + i], work[KE * n + i]);
+        let wide = cps_unwrap(wide_px, i);
         if (abs(wide.x - narrow.x) >= P.half_period_px) {
             bits[FLAGS * n + i] |= UNWRAP_MARGIN;
+            work[UE * n + i] = wide_px;
+            work[KE * n + i] = 1.0;
             return;
         }
     }
     work[RE * n + i] = work[UE * n + i];
     work[IM * n + i] = work[KE * n + i];
     work[SUPPORT * n + i] = work[COUNT * n + i];
+    work[KE * n + i] = 0.0;
 }
 
 // The coarse coordinate of a unit phasor, as `unwrap` takes it.

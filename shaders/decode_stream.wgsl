@@ -6,8 +6,9 @@
 //                     the host reads the grid back and takes the library's median
 //   noise_grid_final  the same on the final planes, with or without the model, for the host's
 //                     mixed-pixel stage (src/decode/edges.rs)
-//   settle            the rounding margin settled by the pixel's own recent past, then the
-//                     coordinate moved from the frames' mean to the window's centre time
+//   settle            the rounding margin settled by the pixel's own recent past (siding with
+//                     either of stage 2's averages where they contradicted each other), then
+//                     the coordinate moved from the frames' mean to the window's centre time
 //   temporal          fringe-order jumps in time (src/decode/temporal.rs); the references carried
 //                     on; the patch velocity forgotten where the pixel's signal or neighbourhood
 //                     failed (DecodeOutput::clear_motion_where_invalid)
@@ -73,8 +74,14 @@ fn settle(@builtin(global_invocation_id) id: vec3<u32>) {
     if (M[M_CHECK_TIME] != 0.0 && M[M_CONSECUTIVE] != 0.0 && bits[FLAGS * n + i] == UNWRAP_MARGIN
         && older <= MAX_AGE_WINDOWS) {
         let predicted = state[RECENT * n + i] + known_velocity(i) * M[M_INTERVAL];
-        let spatial = cps_unwrap(state[COARSE * n + i], i);
         let temporal = cps_unwrap(predicted, i);
+        var spatial = cps_unwrap(state[COARSE * n + i], i);
+        // Where stage 2's two averages contradicted each other, the past may side with the wide
+        // one (wide_select left its coarse coordinate in UE).
+        if (abs(spatial.x - temporal.x) >= 0.5 && M[M_WIDE_DECAY] != 0.0
+            && work[KE * n + i] != 0.0) {
+            spatial = cps_unwrap(work[UE * n + i], i);
+        }
         if (abs(spatial.x - temporal.x) < 0.5 && temporal.y <= P.max_rounding_residual) {
             bits[FLAGS * n + i] = 0u;
             work[COORD * n + i] = spatial.x;

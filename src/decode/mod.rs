@@ -519,6 +519,7 @@ pub(crate) fn finish_window(
         out.patch_velocity_time_s = f64::NAN;
     }
     let corrected = Instant::now();
+    let mut two_averages = false;
     if params.unwrap == UnwrapMethod::ChebyshevRobust {
         let smoothing = SmoothingParams {
             decay: params.unit_decay_at(out.width),
@@ -532,6 +533,7 @@ pub(crate) fn finish_window(
             (Some(moving_decay), Some(n)) => {
                 let check = smooth_moving::Agreement::new(solver, params, n);
                 smooth_moving::smooth_both(out, &smoothing, moving_decay, &check);
+                two_averages = true;
             }
             _ => smooth::smooth_unit_phasor(out, &smoothing, chebyshev_n),
         }
@@ -548,6 +550,7 @@ pub(crate) fn finish_window(
                 &cps,
                 params.max_rounding_residual,
                 basis.frame_interval_s,
+                two_averages,
             );
         }
         motion::remove_acceleration_shift(basis, out);

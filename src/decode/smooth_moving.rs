@@ -99,7 +99,7 @@ fn smooth_for_moving(out: &mut DecodeOutput, decay: f32, n: u32, check: &Agreeme
         unit_per_fine: 1.0 / n.max(1) as f32,
     };
     smooth_transported(&mut planes, decay, transport);
-    let (wide_re, rest) = out.motion_evidence.split_at(pixels);
+    let (wide_re, rest) = out.motion_evidence.split_at_mut(pixels);
     let (wide_im, wide_support) = rest.split_at(pixels);
     let nf = out.frequencies;
     out.unit_re
@@ -110,7 +110,7 @@ fn smooth_for_moving(out: &mut DecodeOutput, decay: f32, n: u32, check: &Agreeme
         .zip(out.velocity_px_per_s.par_chunks(w))
         .zip(out.phase_rad.par_chunks(w * nf))
         .zip(out.amplitude.par_chunks(w * nf))
-        .zip(wide_re.par_chunks(w))
+        .zip(wide_re.par_chunks_mut(w))
         .zip(wide_im.par_chunks(w))
         .zip(wide_support.par_chunks(w))
         .zip(out.smooth_tmp.par_chunks_mut(2 * w))
@@ -125,7 +125,8 @@ fn smooth_for_moving(out: &mut DecodeOutput, decay: f32, n: u32, check: &Agreeme
                     velocity,
                     phase,
                     amplitude: amp,
-                    wide: [wre, wim, wsup],
+                    wide_re: wre,
+                    wide: [wim, wsup],
                     scratch: tmp,
                 };
                 select_row(check, row);
@@ -142,7 +143,8 @@ struct SelectRow<'a> {
     velocity: &'a [f32],
     phase: &'a [f32],
     amplitude: &'a [f32],
-    wide: [&'a [f32]; 3],
+    wide_re: &'a mut [f32],
+    wide: [&'a [f32]; 2],
     scratch: &'a mut [f32],
 }
 
@@ -158,8 +160,8 @@ fn select_row(check: &Agreement, row: SelectRow<'_>) {
     let w = row.flags.len();
     let [re, im, support] = row.narrow;
     let (re, im, support) = (&mut re[..w], &mut im[..w], &mut support[..w]);
-    let [wre, wim, wsup] = row.wide;
-    let (wre, wim, wsup) = (&wre[..w], &wim[..w], &wsup[..w]);
+    let [wim, wsup] = row.wide;
+    let (wre, wim, wsup) = (&mut row.wide_re[..w], &wim[..w], &wsup[..w]);
     let (flags, velocity) = (&mut row.flags[..w], &row.velocity[..w]);
     let (ph0, ph1, ph2) = (
         &row.phase[..w],
@@ -194,6 +196,7 @@ fn select_row(check: &Agreement, row: SelectRow<'_>) {
         } else {
             0
         };
+        wre[x] = if refuse { wide_px[x] } else { f32::NAN };
     }
 }
 
@@ -311,7 +314,9 @@ mod tests {
         let mut flags = vec![0u16; w];
         let mut scratch = vec![0.0; 2 * w];
         let before = narrow.clone();
+        let wide_before = wide.clone();
         let [re, im, support] = &mut narrow;
+        let [wide_re, wide_im, wide_support] = &mut wide;
         select_row(
             &check,
             SelectRow {
@@ -320,12 +325,13 @@ mod tests {
                 velocity: &velocity,
                 phase: &phase,
                 amplitude: &amplitude,
-                wide: [&wide[0], &wide[1], &wide[2]],
+                wide_re,
+                wide: [wide_im, wide_support],
                 scratch: &mut scratch,
             },
         );
         let margin = crate::decode::invalid::UNWRAP_MARGIN;
-        let took_wide = |i: usize| narrow[2][i] == 60.0 && narrow[0][i] == wide[0][i];
+        let took_wide = |i: usize| narrow[2][i] == 60.0 && narrow[0][i] == wide_before[0][i];
         let kept_narrow = |i: usize| (0..3).all(|p| narrow[p][i] == before[p][i]);
         assert!(took_wide(0) && flags[0] == 0);
         assert!(kept_narrow(1) && flags[1] == margin);
@@ -333,6 +339,16 @@ mod tests {
         assert!(took_wide(3) && flags[3] == 0);
         assert!(kept_narrow(4) && flags[4] == 0);
         assert!(kept_narrow(5) && flags[5] == margin);
+        // A refused pixel keeps the wide average's coarse coordinate for the recent past to
+        // weigh (temporal::settle_margin_from_recent); no other pixel has one.
+        for i in 0..w {
+            if flags[i] == margin {
+                let wide_px = cases[i].2;
+                assert!((wide[0][i] - wide_px).abs() < 0.01, "{i}: {}", wide[0][i]);
+            } else {
+                assert!(wide[0][i].is_nan(), "{i}: {}", wide[0][i]);
+            }
+        }
     }
 
     #[test]

@@ -125,11 +125,20 @@ pub(crate) fn settle_margin_from_recent(
     cps: &CpsMaps,
     max_residual: f32,
     frame_interval_s: f32,
+    two_averages: bool,
 ) {
     if consecutive_since(out.time_s, out.recent_time_s, frame_interval_s).is_none() {
         return;
     }
     let w = out.width;
+    // Stage 2's other estimate: the wide average's coarse coordinate where the two contradicted
+    // each other (NaN elsewhere), or none at all.
+    let none = [f32::NAN];
+    let (wide_px, wide_row) = if two_averages {
+        (&out.motion_evidence[..w * out.height], w)
+    } else {
+        (&none[..], 0)
+    };
     let settle = Settle {
         cps: *cps,
         max_residual,
@@ -145,8 +154,13 @@ pub(crate) fn settle_margin_from_recent(
         .zip(out.recent_age_windows.par_chunks(w))
         .zip(out.patch_velocity_px_per_s.par_chunks(w))
         .zip(out.patch_moving.par_chunks(w))
+        .enumerate()
         .for_each(
-            |((((((((flags, coord), coarse), phase), amp), recent), age), velocity), moving)| {
+            |(
+                y,
+                ((((((((flags, coord), coarse), phase), amp), recent), age), velocity), moving),
+            )| {
+                let wide = &wide_px[y * wide_row..];
                 for x in 0..flags.len() {
                     if flags[x] != invalid::UNWRAP_MARGIN {
                         continue;
@@ -158,7 +172,14 @@ pub(crate) fn settle_margin_from_recent(
                     let u = patch_velocity(velocity[x], moving[x]);
                     let phases = [phase[x], phase[w + x], phase[2 * w + x]];
                     let amps = [amp[x], amp[w + x], amp[2 * w + x]];
-                    if let Some(c) = settle.agreed(coarse[x], recent[x], u, phases, amps) {
+                    let other = if wide_row == 0 { f32::NAN } else { wide[x] };
+                    let agreed = settle
+                        .agreed(coarse[x], recent[x], u, phases, amps)
+                        .or_else(|| {
+                            let other = other.is_finite().then_some(other)?;
+                            settle.agreed(other, recent[x], u, phases, amps)
+                        });
+                    if let Some(c) = agreed {
                         flags[x] = 0;
                         coord[x] = c;
                     }
@@ -376,7 +397,7 @@ mod tests {
         // Pixel 2 has another fault too; pixel 3's reference is too old.
         out.invalid[2] |= invalid::DISAGREEMENT;
         out.recent_age_windows[3] = MAX_AGE_WINDOWS;
-        settle_margin_from_recent(&mut out, &cps, 0.3, INTERVAL_S);
+        settle_margin_from_recent(&mut out, &cps, 0.3, INTERVAL_S, false);
         assert_eq!(out.invalid[0], 0);
         assert!(
             (out.coordinate_px[0] - truth).abs() < 1e-3,
@@ -391,8 +412,47 @@ mod tests {
         out.time_s += 3.0 * f64::from(INTERVAL_S);
         out.invalid[0] = invalid::UNWRAP_MARGIN;
         out.coordinate_px[0] = f32::NAN;
-        settle_margin_from_recent(&mut out, &cps, 0.3, INTERVAL_S);
+        settle_margin_from_recent(&mut out, &cps, 0.3, INTERVAL_S, false);
         assert_eq!(out.invalid[0], invalid::UNWRAP_MARGIN);
+    }
+
+    #[test]
+    fn where_the_two_averages_contradicted_the_recent_past_may_side_with_either() {
+        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
+        let solver =
+            WindowSolver::new(&seq, &[0, 1, 2], &crate::color::CrossTalk::paper()).unwrap();
+        let f = &solver.frequency_rad_per_px;
+        let cps = CpsMaps::new(f, &solver.noise_gain);
+        let period = TAU / f[0];
+        let w = 3;
+        let truth = 104.0f32;
+        // Each pixel's narrow and wide coarse coordinates, in periods from the truth: the wide
+        // one right (0), the narrow one right (1), both a period off (2).
+        let cases = [(1.0, 0.1), (0.1, 1.0), (1.0, -1.0)];
+        let settled = |two_averages: bool| {
+            let mut out = DecodeOutput::new(w, 1, &solver);
+            window(&mut out, &[truth; 3], 1);
+            out.time_s += f64::from(INTERVAL_S);
+            for slot in 0..3 {
+                let phase = (f[slot] * truth).rem_euclid(TAU);
+                out.phase_rad[slot * w..(slot + 1) * w].fill(phase);
+                out.amplitude[slot * w..(slot + 1) * w].fill(50.0);
+            }
+            for (x, &(narrow, wide)) in cases.iter().enumerate() {
+                out.coarse_px[x] = truth + narrow * period;
+                out.motion_evidence[x] = truth + wide * period;
+            }
+            out.coordinate_px.fill(f32::NAN);
+            out.invalid.fill(invalid::UNWRAP_MARGIN);
+            settle_margin_from_recent(&mut out, &cps, 0.3, INTERVAL_S, two_averages);
+            let right = |x: usize| (out.coordinate_px[x] - truth).abs() < 1e-3;
+            (0..w)
+                .map(|x| out.invalid[x] == 0 && right(x))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(settled(true), [true, true, false]);
+        // Without a second average the first pixel has only its narrow one.
+        assert_eq!(settled(false), [false, true, false]);
     }
 
     #[test]
