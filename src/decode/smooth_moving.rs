@@ -27,7 +27,10 @@
 //! little support) or picks the same fringe orders; where the narrow one is sure and the two
 //! pick different orders, the pixel is refused for the rounding margin ([`Agreement`],
 //! `select_row`): two estimates of one coarse coordinate that contradict each other give no
-//! depth.
+//! depth, unless a third settles it. The refused pixel's wide coarse coordinate stays in the
+//! first evidence plane (NaN at every other pixel), and the pixel's own recent past, an
+//! estimate independent of both, may side with either
+//! ([`super::temporal::settle_margin_from_recent`]).
 //!
 //! **How.** Before the narrow average overwrites the unit phasor and its support, they are
 //! copied into the motion model's evidence planes, which its last step has finished with
@@ -48,6 +51,9 @@ use rayon::prelude::*;
 
 /// Stage 2 of a window where something moves: the narrow average (`narrow`) for every pixel,
 /// and the wide one at `wide_decay` per camera px for the moving pixels, as `check` decides.
+/// Leaves in the first `width·height` values of `out.motion_evidence` the wide coarse
+/// coordinate (projector px) of each pixel refused because the two contradict each other, NaN
+/// at the others.
 pub(crate) fn smooth_both(
     out: &mut DecodeOutput,
     narrow: &SmoothingParams,
@@ -136,7 +142,8 @@ fn smooth_for_moving(out: &mut DecodeOutput, decay: f32, n: u32, check: &Agreeme
 
 /// One row of the decision: the narrow phasor and support (replaced where the wide ones are
 /// taken), the flags, the velocity, the row-planar phases and amplitudes, the wide sums and two
-/// rows of scratch.
+/// rows of scratch. The wide sum's real part is replaced by the wide coarse coordinate where
+/// the pixel is refused, NaN elsewhere.
 struct SelectRow<'a> {
     narrow: [&'a mut [f32]; 3],
     flags: &'a mut [u16],
@@ -144,13 +151,15 @@ struct SelectRow<'a> {
     phase: &'a [f32],
     amplitude: &'a [f32],
     wide_re: &'a mut [f32],
+    /// The wide sum's imaginary part and support.
     wide: [&'a [f32]; 2],
     scratch: &'a mut [f32],
 }
 
 /// The decision of [`Agreement`] for a whole row, in loops without branches or calls so that
 /// they vectorise: a moving pixel takes the wide phasor and support unless the narrow ones are
-/// sure of other fringe orders, where it is flagged instead.
+/// sure of other fringe orders, where it is flagged instead and keeps the wide coarse
+/// coordinate for the recent past to weigh.
 #[multiversion::multiversion(targets(
     "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
     "x86_64+avx2+fma",

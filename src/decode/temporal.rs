@@ -118,8 +118,12 @@ pub(crate) fn flag_temporal_jumps(
 /// so its fringe order is uncertain, and the reference coordinate (valid at most
 /// [`MAX_AGE_WINDOWS`] windows ago, carried forward since), moved on by the patch's velocity
 /// over this frame interval, unwraps to the same order at every frequency well inside the
-/// margin (`max_residual`). Two independent estimates then pick the same order. Runs before [`flag_temporal_jumps`], on the
-/// same references, and only on a window one frame interval after the last one checked.
+/// margin (`max_residual`). Two independent estimates then pick the same order. With
+/// `two_averages` (stage 2 ran both, [`super::smooth_moving`]), a pixel refused because the
+/// narrow and wide averages contradicted each other is also settled where the past picks the
+/// wide one's orders; the first `width·height` values of `out.motion_evidence` hold its coarse
+/// coordinate then. Runs before [`flag_temporal_jumps`], on the same references, and only on a
+/// window one frame interval after the last one checked.
 pub(crate) fn settle_margin_from_recent(
     out: &mut DecodeOutput,
     cps: &CpsMaps,
