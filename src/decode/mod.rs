@@ -22,6 +22,7 @@
 //! straightforward per-pixel solve the fast path is tested and benchmarked against.
 
 pub mod backend;
+pub mod broken;
 mod connect;
 mod consistency;
 pub mod edges;
@@ -89,6 +90,9 @@ pub mod invalid {
     /// it is off its neighbourhood's surface, lit only by the blur of that surface's light, or
     /// faces another surface across a one-pixel gap.
     pub const MIXED: u16 = 256;
+    /// The whole window was refused: most of its lit pixels broke the phase relation, as a
+    /// corrupted frame makes them ([`super::broken`]).
+    pub const BROKEN_WINDOW: u16 = 512;
 }
 
 /// Errors of the decode module.
@@ -568,6 +572,7 @@ pub(crate) fn finish_window(
         }
     }
     edges::flag_mixed_pixels(solver, params, out);
+    broken::refuse_broken_window(out);
     if motion_basis.is_some() {
         out.clear_motion_where_invalid();
     }

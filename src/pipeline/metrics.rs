@@ -17,6 +17,7 @@ struct State {
     decoded: u64,
     decode_times: VecDeque<Instant>,
     unsolvable_windows: u64,
+    refused_windows: u64,
     decode_dropped: u64,
     latencies_ms: VecDeque<f64>,
     recorded: u64,
@@ -42,6 +43,9 @@ pub struct MetricsSnapshot {
     pub decode_fps: f64,
     /// Windows not decoded because a frame was missing from them.
     pub unsolvable_windows: u64,
+    /// Windows decoded but refused whole: a frame broke the phase relation on most of their
+    /// lit pixels (`decode::broken`); their clouds are empty.
+    pub refused_windows: u64,
     /// Frames the real-time decode stage dropped (it keeps the newest).
     pub decode_dropped: u64,
     pub latency_ms_median: f64,
@@ -97,6 +101,10 @@ impl Metrics {
         self.with(|s| s.unsolvable_windows += 1);
     }
 
+    pub fn window_refused(&self) {
+        self.with(|s| s.refused_windows += 1);
+    }
+
     pub fn set_decode_dropped(&self, dropped: u64) {
         self.with(|s| s.decode_dropped = dropped);
     }
@@ -131,6 +139,7 @@ impl Metrics {
                 decoded: s.decoded,
                 decode_fps: rate(&s.decode_times),
                 unsolvable_windows: s.unsolvable_windows,
+                refused_windows: s.refused_windows,
                 decode_dropped: s.decode_dropped,
                 latency_ms_median: pick(0.5),
                 latency_ms_p99: pick(0.99),
@@ -146,13 +155,14 @@ impl std::fmt::Display for MetricsSnapshot {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "capture {:.1} FPS ({} frames, {} lost at source) | decode {:.1} FPS ({} windows, {} unsolvable) | latency {:.1} ms median, {:.1} ms p99 | drops: decode {}, display {}, recorder {} | recorded {}",
+            "capture {:.1} FPS ({} frames, {} lost at source) | decode {:.1} FPS ({} windows, {} unsolvable, {} refused) | latency {:.1} ms median, {:.1} ms p99 | drops: decode {}, display {}, recorder {} | recorded {}",
             self.capture_fps,
             self.captured,
             self.source_lost,
             self.decode_fps,
             self.decoded,
             self.unsolvable_windows,
+            self.refused_windows,
             self.latency_ms_median,
             self.latency_ms_p99,
             self.decode_dropped,

@@ -128,7 +128,12 @@ pub(super) fn decode_loop(
             }
         };
         let out = match outcome {
-            WindowOutcome::Decoded(out) => out,
+            WindowOutcome::Decoded(out) => {
+                if out.refused_share.is_some() {
+                    shared.metrics.window_refused();
+                }
+                out
+            }
             WindowOutcome::Filling { .. } => continue,
             WindowOutcome::Unsolvable { .. } | WindowOutcome::TooSpread { .. } => {
                 shared.metrics.window_unsolvable();

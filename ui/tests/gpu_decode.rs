@@ -164,6 +164,18 @@ fn compare_rig_stream(rig: &VirtualRig, first: u64, count: u64, params: DecodePa
 /// The rig's frames `indices`, in that order, through a CPU and a GPU sliding decoder; compares
 /// every window both decoded and returns how many.
 fn compare_rig_frames(rig: &VirtualRig, indices: &[u64], params: DecodeParams) -> usize {
+    let stream = indices.iter().map(|&i| frames(rig, i, 1).remove(0));
+    compare_frames(rig, stream, params).0
+}
+
+/// `stream` (frames of `rig`'s sequence) through a CPU and a GPU sliding decoder; compares
+/// every window both decoded, and asserts that they refuse the same windows whole. Returns how
+/// many windows were compared and how many of them both refused.
+fn compare_frames(
+    rig: &VirtualRig,
+    stream: impl Iterator<Item = Frame>,
+    params: DecodeParams,
+) -> (usize, usize) {
     let new = || SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params).unwrap();
     let mut cpu = new();
     // Timestamps wherever the adapter has them (lavapipe does), so their read-out is tested too.
@@ -176,8 +188,8 @@ fn compare_rig_frames(rig: &VirtualRig, indices: &[u64], params: DecodeParams) -
         "{}",
         gpu.backend_name()
     );
-    let mut windows = 0;
-    for frame in indices.iter().map(|&i| frames(rig, i, 1).remove(0)) {
+    let (mut windows, mut refused) = (0, 0);
+    for frame in stream {
         let a = match cpu.push(&frame).unwrap() {
             WindowOutcome::Decoded(out) => Some(out.clone()),
             _ => None,
@@ -198,10 +210,18 @@ fn compare_rig_frames(rig: &VirtualRig, indices: &[u64], params: DecodeParams) -
         if let Some(device_ms) = t.device_ms {
             assert!(device_ms > 0.0 && device_ms <= t.solve_ms, "{t:?}");
         }
-        compare(&a, b, params.motion.model != MotionModel::Off);
         windows += 1;
+        assert_eq!(a.refused_share.is_some(), b.refused_share.is_some());
+        if a.refused_share.is_some() {
+            let broken = tremorscan::decode::invalid::BROKEN_WINDOW;
+            assert!(b.invalid.iter().all(|f| f & broken != 0));
+            assert!(b.coordinate_px.iter().all(|c| c.is_nan()));
+            refused += 1;
+            continue;
+        }
+        compare(&a, b, params.motion.model != MotionModel::Off);
     }
-    windows
+    (windows, refused)
 }
 
 #[test]
@@ -304,6 +324,39 @@ fn after_dropped_frames_the_gpu_links_windows_as_the_cpu_does() {
     let indices: Vec<u64> = (0..5).chain(8..13).collect();
     let windows = compare_rig_frames(&rig, &indices, DecodeParams::default());
     assert!(windows >= 4, "{windows} windows compared");
+}
+
+#[test]
+fn a_corrupted_frame_refuses_the_same_windows_on_the_gpu_and_the_cpu() {
+    // Frame 4's red channel from the pattern a quarter period on: the three windows holding it
+    // break the Chebyshev relation on most pixels and are refused whole (decode/broken.rs), and
+    // both decoders start the stream's links afresh after them.
+    let mut config = RigConfig::paper(320, 200).unwrap();
+    config.scene.hand.as_mut().unwrap().tip_amplitude_mm = 10.0;
+    let rig = rig_with(config);
+    let mut shifted_seq = rig.sequence.clone();
+    for entry in &mut shifted_seq.entries {
+        if let tremorscan::pattern::PatternEntry::Rgb { red, .. } = entry {
+            red.shift_rad += std::f64::consts::FRAC_PI_2;
+        }
+    }
+    let shifted = VirtualRig::new(rig.config.clone(), shifted_seq).unwrap();
+    let stream = (0..10).map(|i| {
+        let mut frame = frames(&rig, i, 1).remove(0);
+        if i == 4 {
+            let other = frames(&shifted, i, 1).remove(0);
+            for (dst, src) in frame
+                .data
+                .chunks_exact_mut(3)
+                .zip(other.data.chunks_exact(3))
+            {
+                dst[0] = src[0];
+            }
+        }
+        frame
+    });
+    let (windows, refused) = compare_frames(&rig, stream, DecodeParams::default());
+    assert_eq!((windows, refused), (8, 3));
 }
 
 #[test]

@@ -24,8 +24,8 @@ use std::sync::Arc;
 use std::time::Instant;
 use tremorscan::decode::backend::Window;
 use tremorscan::decode::{
-    edges, motion_basis, DecodeOutput, DecodeParams, MotionBasis, MotionModel, UnwrapMethod,
-    WindowSolver,
+    broken, edges, motion_basis, DecodeOutput, DecodeParams, MotionBasis, MotionModel,
+    UnwrapMethod, WindowSolver,
 };
 
 /// Pipelines and buffers for one image size.
@@ -408,6 +408,10 @@ impl GpuDecoder {
         self.final_noise_gray = final_noise_gray;
         let read_back = Instant::now();
         edges::flag_mixed_pixels_with_noise(window.solver, window.params, final_noise_gray, out);
+        if broken::refuse_broken_window(out).is_some() {
+            // As on the CPU, the next window is not linked to a refused one.
+            self.clock = StreamClock::default();
+        }
         out.timings = tremorscan::decode::StageTimings {
             solve_ms: (read_back - started).as_secs_f64() * 1e3,
             motion_ms: 0.0,

@@ -88,6 +88,12 @@ pub fn status_bar_ui(ui: &mut egui::Ui, status: &Status<'_>, messages: &mut Mess
                 ui.label(drops).on_hover_text(
                     "display drops are frames decoded faster than the window repaints; tracking still sees them",
                 );
+                if m.refused_windows > 0 {
+                    ui.label(format!("refused windows {}", m.refused_windows))
+                        .on_hover_text(
+                            "windows whose frames broke the phase relation on most lit pixels (a corrupted frame): no points from them",
+                        );
+                }
             }
             None => {
                 ui.label("no device running");
