@@ -148,6 +148,48 @@ fn a_lossless_replay_decodes_every_window() {
 }
 
 #[test]
+fn windows_refused_for_a_corrupted_frame_are_counted_and_give_no_points() {
+    let rig = rig(320, 200);
+    let mut frames = rendered(&rig, 12);
+    frames[6] = common::corrupted_red(&rig, 6);
+    let camera = MemoryCamera {
+        frames,
+        repeat: 1,
+        next: 0,
+        go: Arc::new(AtomicBool::new(true)),
+        interval: Duration::ZERO,
+    };
+    let config = PipelineConfig {
+        decode_policy: DecodePolicy::Lossless,
+        consumer_queue: 16,
+        ..PipelineConfig::default()
+    };
+    let pipeline = Pipeline::start(
+        Box::new(camera),
+        rig.sequence.clone(),
+        rig.config.cross_talk,
+        rig.stereo_model(),
+        config,
+    )
+    .unwrap();
+    assert!(pipeline.wait_for_end(Duration::from_secs(30)));
+    let mut empty = Vec::new();
+    while let Some(cloud) = pipeline.next_for_consumer() {
+        let valid = cloud.cloud.valid_count();
+        if valid == 0 {
+            empty.push(cloud.window_end);
+        } else {
+            assert!(valid * 4 > 320 * 200 * 3, "{}: {valid}", cloud.window_end);
+        }
+    }
+    // The three windows that hold frame 6.
+    assert_eq!(empty, [6, 7, 8]);
+    let m = pipeline.stop();
+    assert_eq!((m.decoded, m.refused_windows), (10, 3));
+    assert!(m.to_string().contains("3 refused"), "{m}");
+}
+
+#[test]
 fn a_real_time_stage_that_falls_behind_drops_and_counts() {
     let rig = rig(320, 200);
     let go = Arc::new(AtomicBool::new(true));

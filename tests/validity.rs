@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::still_hand_rig;
+use common::{corrupted_red, still_hand_rig};
 use tremorscan::decode::{invalid, DecodeParams, SlidingDecoder, WindowOutcome};
 use tremorscan::frame::Frame;
 use tremorscan::rig::{NoiseModel, VirtualRig};
@@ -39,31 +39,6 @@ fn saturated_pixels_are_never_valid() {
             assert!(out.coordinate_px[p].is_nan());
         }
     }
-}
-
-/// Frame `index` of `rig`'s stream with its red channel (m = n − 1) replaced by the one the rig
-/// shows for the pattern a quarter period on: every pixel then sees red phases that disagree
-/// with green and blue, as motion or a mixed pixel would make them.
-fn corrupted(rig: &VirtualRig, index: u64) -> Frame {
-    let mut shifted_seq = rig.sequence.clone();
-    for entry in &mut shifted_seq.entries {
-        if let tremorscan::pattern::PatternEntry::Rgb { red, .. } = entry {
-            red.shift_rad += std::f64::consts::FRAC_PI_2;
-        }
-    }
-    let shifted_rig = VirtualRig::new(rig.config.clone(), shifted_seq).unwrap();
-    let mut shifted = shifted_rig.blank_frame();
-    shifted_rig.render(index, &mut shifted, None).unwrap();
-    let mut frame = rig.blank_frame();
-    rig.render(index, &mut frame, None).unwrap();
-    for (dst, src) in frame
-        .data
-        .chunks_exact_mut(3)
-        .zip(shifted.data.chunks_exact(3))
-    {
-        dst[0] = src[0];
-    }
-    frame
 }
 
 /// Pixels valid in both whose coordinates differ by half a fringe period or more.
@@ -103,7 +78,7 @@ fn a_frame_that_breaks_the_chebyshev_relation_refuses_its_window() {
     assert!(disagreeing(&clean) < n / 50, "{}", disagreeing(&clean));
     assert_eq!(clean.refused_share, None);
     // The whole frame broken: most pixels disagree, and the window is refused whole.
-    let broken = decode(&corrupted(&rig, 1));
+    let broken = decode(&corrupted_red(&rig, 1));
     assert!(
         disagreeing(&broken) > n / 2,
         "{} of {n}",
@@ -133,7 +108,7 @@ fn a_corrupted_frame_refuses_the_three_windows_that_hold_it_and_no_more() {
     let rig = VirtualRig::new(config, seq.clone()).unwrap();
     let frames = common::rendered(&rig, 0..12);
     let bad = 6;
-    let broken_frame = corrupted(&rig, bad as u64);
+    let broken_frame = corrupted_red(&rig, bad as u64);
     let decode_all = |corrupt: bool| {
         let mut d =
             SlidingDecoder::new(seq.clone(), rig.config.cross_talk, DecodeParams::default())
