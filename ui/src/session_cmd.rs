@@ -266,6 +266,12 @@ pub fn decode_window(session: &Session, last: usize, params: DecodeParams) -> Re
         .output()
         .filter(|_| decoded)
         .context("the window did not decode")?;
+    if let Some(share) = out.refused_share {
+        bail!(
+            "the window ending at frame {last} was refused: {:.0} % of its lit pixels break the phase relation, as a corrupted frame makes them (the neighbouring windows may decode)",
+            100.0 * share
+        );
+    }
     let triangulator = Triangulator::new(session.stereo_model()?)?;
     let mut cloud = PointCloud::default();
     triangulator.triangulate(out, &mut cloud)?;
