@@ -71,6 +71,21 @@ fn lossless_pipeline(
     frames: &[Frame],
     repeat: usize,
 ) -> (Pipeline, Arc<AtomicBool>) {
+    lossless_pipeline_with(
+        rig,
+        frames,
+        repeat,
+        PipelineConfig::default().consumer_queue,
+    )
+}
+
+/// [`lossless_pipeline`] with a queue of `consumer_queue` results for a consumer.
+fn lossless_pipeline_with(
+    rig: &VirtualRig,
+    frames: &[Frame],
+    repeat: usize,
+    consumer_queue: usize,
+) -> (Pipeline, Arc<AtomicBool>) {
     let go = Arc::new(AtomicBool::new(false));
     let camera = MemoryCamera {
         frames: frames.to_vec(),
@@ -81,6 +96,7 @@ fn lossless_pipeline(
     };
     let config = PipelineConfig {
         decode_policy: DecodePolicy::Lossless,
+        consumer_queue,
         ..PipelineConfig::default()
     };
     let pipeline = Pipeline::start(
@@ -152,26 +168,8 @@ fn windows_refused_for_a_corrupted_frame_are_counted_and_give_no_points() {
     let rig = rig(320, 200);
     let mut frames = rendered(&rig, 12);
     frames[6] = common::corrupted_red(&rig, 6);
-    let camera = MemoryCamera {
-        frames,
-        repeat: 1,
-        next: 0,
-        go: Arc::new(AtomicBool::new(true)),
-        interval: Duration::ZERO,
-    };
-    let config = PipelineConfig {
-        decode_policy: DecodePolicy::Lossless,
-        consumer_queue: 16,
-        ..PipelineConfig::default()
-    };
-    let pipeline = Pipeline::start(
-        Box::new(camera),
-        rig.sequence.clone(),
-        rig.config.cross_talk,
-        rig.stereo_model(),
-        config,
-    )
-    .unwrap();
+    let (pipeline, go) = lossless_pipeline_with(&rig, &frames, 1, 16);
+    go.store(true, Ordering::SeqCst);
     assert!(pipeline.wait_for_end(Duration::from_secs(30)));
     let mut empty = Vec::new();
     while let Some(cloud) = pipeline.next_for_consumer() {

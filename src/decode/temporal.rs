@@ -370,14 +370,21 @@ mod tests {
         assert!((out.recent_coordinate_px[1] - now).abs() < 1e-3);
     }
 
-    #[test]
-    fn the_recent_past_settles_an_uncertain_rounding_only_when_it_agrees() {
+    /// The rig's CPS-RGB solver, its unwrap maps and the finest period (projector px).
+    fn maps() -> (WindowSolver, CpsMaps, f32) {
         let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
         let solver =
             WindowSolver::new(&seq, &[0, 1, 2], &crate::color::CrossTalk::paper()).unwrap();
         let f = &solver.frequency_rad_per_px;
         let cps = CpsMaps::new(f, &solver.noise_gain);
         let period = TAU / f[0];
+        (solver, cps, period)
+    }
+
+    #[test]
+    fn the_recent_past_settles_an_uncertain_rounding_only_when_it_agrees() {
+        let (solver, cps, period) = maps();
+        let f = &solver.frequency_rad_per_px;
         let w = 4;
         let mut out = DecodeOutput::new(w, 1, &solver);
         // The previous window: every pixel valid at 100 px.
@@ -422,12 +429,8 @@ mod tests {
 
     #[test]
     fn where_the_two_averages_contradicted_the_recent_past_may_side_with_either() {
-        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
-        let solver =
-            WindowSolver::new(&seq, &[0, 1, 2], &crate::color::CrossTalk::paper()).unwrap();
+        let (solver, cps, period) = maps();
         let f = &solver.frequency_rad_per_px;
-        let cps = CpsMaps::new(f, &solver.noise_gain);
-        let period = TAU / f[0];
         let w = 3;
         let truth = 104.0f32;
         // Each pixel's narrow and wide coarse coordinates, in periods from the truth: the wide

@@ -14,6 +14,7 @@ pub mod board;
 pub mod captures;
 pub mod edge_eval;
 pub mod evaluate;
+pub mod faults;
 pub mod motion_eval;
 pub mod noise;
 pub mod optics;

@@ -86,27 +86,11 @@ pub fn rig(width: usize, height: usize) -> VirtualRig {
     VirtualRig::new(config, seq).unwrap()
 }
 
-/// Frame `index` of `rig`'s stream with its red channel (m = n − 1) replaced by the one the rig
-/// shows for the pattern a quarter period on: every pixel then sees red phases that disagree
-/// with green and blue, as a corrupted transfer or a channel from another exposure makes them.
+/// Frame `index` of `rig`'s stream with its red channel from the pattern a quarter period on
+/// (`VirtualRig::render_with_shifted_red`): a corrupted transfer.
 pub fn corrupted_red(rig: &VirtualRig, index: u64) -> tremorscan::frame::Frame {
-    let mut shifted_seq = rig.sequence.clone();
-    for entry in &mut shifted_seq.entries {
-        if let tremorscan::pattern::PatternEntry::Rgb { red, .. } = entry {
-            red.shift_rad += std::f64::consts::FRAC_PI_2;
-        }
-    }
-    let shifted_rig = VirtualRig::new(rig.config.clone(), shifted_seq).unwrap();
-    let mut shifted = shifted_rig.blank_frame();
-    shifted_rig.render(index, &mut shifted, None).unwrap();
     let mut frame = rig.blank_frame();
-    rig.render(index, &mut frame, None).unwrap();
-    for (dst, src) in frame
-        .data
-        .chunks_exact_mut(3)
-        .zip(shifted.data.chunks_exact(3))
-    {
-        dst[0] = src[0];
-    }
+    rig.render_with_shifted_red(index, std::f64::consts::FRAC_PI_2, &mut frame)
+        .unwrap();
     frame
 }

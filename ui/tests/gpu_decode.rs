@@ -334,24 +334,13 @@ fn a_corrupted_frame_refuses_the_same_windows_on_the_gpu_and_the_cpu() {
     let mut config = RigConfig::paper(320, 200).unwrap();
     config.scene.hand.as_mut().unwrap().tip_amplitude_mm = 10.0;
     let rig = rig_with(config);
-    let mut shifted_seq = rig.sequence.clone();
-    for entry in &mut shifted_seq.entries {
-        if let tremorscan::pattern::PatternEntry::Rgb { red, .. } = entry {
-            red.shift_rad += std::f64::consts::FRAC_PI_2;
-        }
-    }
-    let shifted = VirtualRig::new(rig.config.clone(), shifted_seq).unwrap();
     let stream = (0..10).map(|i| {
-        let mut frame = frames(&rig, i, 1).remove(0);
+        let mut frame = rig.blank_frame();
         if i == 4 {
-            let other = frames(&shifted, i, 1).remove(0);
-            for (dst, src) in frame
-                .data
-                .chunks_exact_mut(3)
-                .zip(other.data.chunks_exact(3))
-            {
-                dst[0] = src[0];
-            }
+            rig.render_with_shifted_red(i, std::f64::consts::FRAC_PI_2, &mut frame)
+                .unwrap();
+        } else {
+            rig.render(i, &mut frame, None).unwrap();
         }
         frame
     });
