@@ -76,7 +76,7 @@ fn a_frame_that_breaks_the_chebyshev_relation_refuses_its_window() {
     let clean = decode(&frames[1]);
     let n = clean.width * clean.height;
     assert!(disagreeing(&clean) < n / 50, "{}", disagreeing(&clean));
-    assert_eq!(clean.refused_share, None);
+    assert_eq!(clean.refused, None);
     // The whole frame broken: most pixels disagree, and the window is refused whole.
     let broken = decode(&corrupted_red(&rig, 1));
     assert!(
@@ -84,8 +84,9 @@ fn a_frame_that_breaks_the_chebyshev_relation_refuses_its_window() {
         "{} of {n}",
         disagreeing(&broken)
     );
-    let share = broken.refused_share.expect("the window is refused");
-    assert!(share > 0.5, "{share}");
+    let refusal = broken.refused.expect("the window is refused");
+    assert!(refusal.share > 0.5, "{refusal:?}");
+    assert_eq!(refusal.rows, 0..broken.height);
     assert!(broken
         .invalid
         .iter()
@@ -94,8 +95,7 @@ fn a_frame_that_breaks_the_chebyshev_relation_refuses_its_window() {
     // Before windows were refused whole, the per-pixel checks kept 0.39 % of the image a fringe
     // off here (0.14 % with the still window): where the induced red phase error happens to be
     // small (it varies with the phase) a pixel passes them, and the motion model takes part of
-    // such a frame for motion. A frame broken on a band of rows only stays below the window's
-    // limit and is left to those checks (docs/accuracy.md, Validity checks).
+    // such a frame for motion.
 }
 
 #[test]
@@ -103,12 +103,36 @@ fn a_corrupted_frame_refuses_the_three_windows_that_hold_it_and_no_more() {
     // In a stream, a broken frame is first, middle and last of three windows. Before windows
     // were refused whole, the one where it came first kept 5.4 % of the image a fringe off: the
     // windows before were refused too, so no reference checked it.
+    let refusals = refused_around(corrupted_red);
+    assert!(refusals.iter().all(|r| r.rows == (0..400)), "{refusals:?}");
+}
+
+#[test]
+fn a_frame_broken_on_a_band_of_rows_refuses_the_three_windows_that_hold_it() {
+    // A tenth of the rows from another exposure: the windows as a whole disagree on under
+    // 20 %. Before bands of rows were judged on their own they kept 146, 0 and 860 pixels of
+    // the band a fringe off, and 27–53 outside it, up to 19 rows away.
+    let band = 180..220;
+    let refusals = refused_around(|rig, i| common::corrupted_red_rows(rig, i, band.clone()));
+    for r in &refusals {
+        // Refused for a band inside the broken rows, not for the window as a whole.
+        assert!(r.share > 0.5 && r.rows.len() < 40, "{r:?}");
+        assert!(r.rows.start < band.end && band.start < r.rows.end, "{r:?}");
+    }
+}
+
+/// Decodes 12 frames of the still hand with frame 6 replaced by `corrupt(rig, 6)`, checks that
+/// the three windows holding it are refused and give no coordinate, and that the others give
+/// what the clean stream gives; returns the three refusals.
+fn refused_around(
+    corrupt: impl Fn(&VirtualRig, u64) -> Frame,
+) -> Vec<tremorscan::decode::broken::Refusal> {
     let config = still_hand_rig(NoiseModel::default());
     let seq = config.default_sequence().unwrap();
     let rig = VirtualRig::new(config, seq.clone()).unwrap();
     let frames = common::rendered(&rig, 0..12);
     let bad = 6;
-    let broken_frame = corrupted_red(&rig, bad as u64);
+    let broken_frame = corrupt(&rig, bad as u64);
     let decode_all = |corrupt: bool| {
         let mut d =
             SlidingDecoder::new(seq.clone(), rig.config.cross_talk, DecodeParams::default())
@@ -128,15 +152,20 @@ fn a_corrupted_frame_refuses_the_three_windows_that_hold_it_and_no_more() {
     };
     let clean = decode_all(false);
     let broken = decode_all(true);
+    let mut refusals = Vec::new();
     for ((i, c), (_, b)) in clean.iter().zip(&broken) {
         let valid = |o: &tremorscan::decode::DecodeOutput| {
             o.coordinate_px.iter().filter(|c| c.is_finite()).count()
         };
         if (bad..bad + 3).contains(i) {
-            assert!(b.refused_share.is_some(), "window ending at {i}");
+            refusals.push(
+                b.refused
+                    .clone()
+                    .expect("a window holding the broken frame"),
+            );
             assert_eq!(valid(b), 0, "window ending at {i}");
         } else {
-            assert_eq!(b.refused_share, None, "window ending at {i}");
+            assert_eq!(b.refused, None, "window ending at {i}");
             // The windows after start afresh, as after a dropped frame: no reference is
             // missed that matters on a still hand.
             assert!(
@@ -148,4 +177,5 @@ fn a_corrupted_frame_refuses_the_three_windows_that_hold_it_and_no_more() {
             assert_eq!(wrong_orders(&c.coordinate_px, &b.coordinate_px), 0, "{i}");
         }
     }
+    refusals
 }

@@ -73,10 +73,10 @@ pub struct DecodeOutput {
     pub acceleration_px_per_s2: Vec<f32>,
     /// How long each stage took for this window.
     pub timings: StageTimings,
-    /// `Some(share)` when the whole window was refused because that share of its lit pixels
-    /// broke the phase relation (a corrupted frame, [`super::broken`]); every pixel is then
-    /// [`super::invalid::BROKEN_WINDOW`].
-    pub refused_share: Option<f32>,
+    /// Set when the whole window was refused because that share of the lit pixels on those
+    /// rows broke the phase relation (a corrupted frame, [`super::broken`]); every pixel is
+    /// then [`super::invalid::BROKEN_WINDOW`].
+    pub refused: Option<super::broken::Refusal>,
     pub(crate) unit_re: Vec<f32>,
     pub(crate) unit_im: Vec<f32>,
     pub(crate) support: Vec<f32>,
@@ -168,7 +168,7 @@ impl DecodeOutput {
             acceleration_px_per_s2: vec![0.0; n],
             motion_evidence: vec![0.0; 3 * n],
             timings: StageTimings::default(),
-            refused_share: None,
+            refused: None,
             unit_re: vec![0.0; n],
             unit_im: vec![0.0; n],
             support: vec![0.0; n],

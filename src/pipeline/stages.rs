@@ -129,7 +129,7 @@ pub(super) fn decode_loop(
         };
         let out = match outcome {
             WindowOutcome::Decoded(out) => {
-                if out.refused_share.is_some() {
+                if out.refused.is_some() {
                     shared.metrics.window_refused();
                 }
                 out

@@ -89,8 +89,17 @@ pub fn rig(width: usize, height: usize) -> VirtualRig {
 /// Frame `index` of `rig`'s stream with its red channel from the pattern a quarter period on
 /// (`VirtualRig::render_with_shifted_red`): a corrupted transfer.
 pub fn corrupted_red(rig: &VirtualRig, index: u64) -> tremorscan::frame::Frame {
+    corrupted_red_rows(rig, index, 0..rig.height())
+}
+
+/// [`corrupted_red`] on image rows `rows` only: a band of rows from another exposure.
+pub fn corrupted_red_rows(
+    rig: &VirtualRig,
+    index: u64,
+    rows: std::ops::Range<usize>,
+) -> tremorscan::frame::Frame {
     let mut frame = rig.blank_frame();
-    rig.render_with_shifted_red(index, std::f64::consts::FRAC_PI_2, &mut frame)
+    rig.render_with_shifted_red_on_rows(index, std::f64::consts::FRAC_PI_2, rows, &mut frame)
         .unwrap();
     frame
 }

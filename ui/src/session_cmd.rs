@@ -266,10 +266,20 @@ pub fn decode_window(session: &Session, last: usize, params: DecodeParams) -> Re
         .output()
         .filter(|_| decoded)
         .context("the window did not decode")?;
-    if let Some(share) = out.refused_share {
+    if let Some(refusal) = &out.refused {
+        let whole = refusal.rows.len() == out.height;
+        let which = if whole {
+            "its lit pixels".to_string()
+        } else {
+            format!(
+                "the lit pixels on rows {}–{}",
+                refusal.rows.start,
+                refusal.rows.end - 1
+            )
+        };
         bail!(
-            "the window ending at frame {last} was refused: {:.0} % of its lit pixels break the phase relation, as a corrupted frame makes them (the neighbouring windows may decode)",
-            100.0 * share
+            "the window ending at frame {last} was refused: {:.0} % of {which} break the phase relation, as a corrupted frame makes them (the neighbouring windows may decode)",
+            100.0 * refusal.share
         );
     }
     let triangulator = Triangulator::new(session.stereo_model()?)?;

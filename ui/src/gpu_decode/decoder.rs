@@ -408,7 +408,7 @@ impl GpuDecoder {
         self.final_noise_gray = final_noise_gray;
         let read_back = Instant::now();
         edges::flag_mixed_pixels_with_noise(window.solver, window.params, final_noise_gray, out);
-        if broken::refuse_broken_window(out).is_some() {
+        if broken::refuse_broken_window(out) {
             // As on the CPU, the next window is not linked to a refused one.
             self.clock = StreamClock::default();
         }
