@@ -328,28 +328,35 @@ fn a_swaying_fingertip_is_missing_rather_than_a_fringe_off() {
 }
 
 #[test]
-fn a_swaying_fingertip_trembling_five_millimetres_gets_the_clinical_figures() {
+fn a_swaying_fingertip_trembling_two_and_five_millimetres_gets_the_clinical_figures() {
     // With sway the coarse estimate of moving skin lands in the rounding margin far more often
     // than without (at 10 mm, 9.2 % of the moving skin against 3.5 %), though the pixel's own
     // coordinate a window earlier, moved on by the patch's velocity, tells the fringe order
-    // (docs/accuracy.md). Measured over 3 s: before the recent past settled those pixels, 91.4 %
-    // of the tip's samples valid (the target is 95 %); with it, 99.7 %, 11.56 mm
-    // peak-to-peak against 11.71, bin 2 as true.
-    let rig = rig(5.0, 4.0, 3.0);
-    let tip = fingertip_tremor(&rig, DecodeParams::default(), 363).unwrap();
-    let truth = tip.truth.as_ref().unwrap();
-    let measured = tip.measured.as_ref().unwrap();
-    eprintln!("measured: {measured:?}\ntruth: {truth:?}");
-    assert!(
-        measured.valid_fraction >= 0.95,
-        "{}",
-        measured.valid_fraction
-    );
-    let df = tip.frequency_error_hz().unwrap();
-    assert!(df.abs() < 0.05, "frequency off by {df} Hz");
-    let dp = tip.peak_to_peak_error().unwrap();
-    assert!(dp.abs() < 0.03, "peak-to-peak off by {:.2} %", 100.0 * dp);
-    assert_eq!(measured.updrs_amplitude_bin, truth.updrs_amplitude_bin);
+    // (docs/accuracy.md). Measured over 3 s at 5 mm: before the recent past settled those
+    // pixels, 91.4 % of the tip's samples valid (the target is 95 %); with it, 99.7 %,
+    // 11.56 mm peak-to-peak against 11.71, bin 2 as true. At 2 mm the tip slides too slowly for
+    // the motion test at 10⁻⁶: 94.7 % valid; at 10⁻⁴, 97.8 %, 6.98 mm against 7.03.
+    for tip_mm in [2.0, 5.0] {
+        let rig = rig(tip_mm, 4.0, 3.0);
+        let tip = fingertip_tremor(&rig, DecodeParams::default(), 363).unwrap();
+        let truth = tip.truth.as_ref().unwrap();
+        let measured = tip.measured.as_ref().unwrap();
+        eprintln!("{tip_mm} mm: measured: {measured:?}\ntruth: {truth:?}");
+        assert!(
+            measured.valid_fraction >= 0.95,
+            "{tip_mm} mm: {}",
+            measured.valid_fraction
+        );
+        let df = tip.frequency_error_hz().unwrap();
+        assert!(df.abs() < 0.05, "{tip_mm} mm: frequency off by {df} Hz");
+        let dp = tip.peak_to_peak_error().unwrap();
+        assert!(
+            dp.abs() < 0.03,
+            "{tip_mm} mm: peak-to-peak off by {:.2} %",
+            100.0 * dp
+        );
+        assert_eq!(measured.updrs_amplitude_bin, truth.updrs_amplitude_bin);
+    }
 }
 
 #[test]

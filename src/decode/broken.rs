@@ -74,33 +74,40 @@ pub fn refuse_broken_window(out: &mut DecodeOutput) -> bool {
     let scale = (width as f32 / 640.0).max(1.0);
     let band = ((BAND_ROWS as f32 * scale).round() as usize).max(1);
     let min_lit = (MIN_LIT_PER_BAND as f32 * scale * scale).round() as usize;
-    let bands: Vec<(usize, usize)> = out
+    // Per band: its counts, and its index and share where it is over the band limit; summed,
+    // keeping the first such band (nothing allocated).
+    let (lit, disagreeing, broken) = out
         .invalid
         .par_chunks(band * width)
-        .map(|rows| {
-            rows.iter().fold((0, 0), |(lit, bad), &f| {
+        .enumerate()
+        .map(|(k, rows)| {
+            let (lit, bad) = rows.iter().fold((0, 0), |(lit, bad), &f| {
                 let is_lit = f & UNLIT == 0;
                 let disagrees = is_lit & (f & invalid::DISAGREEMENT != 0);
                 (lit + usize::from(is_lit), bad + usize::from(disagrees))
-            })
+            });
+            let broken = lit >= min_lit && bad as f32 > MAX_BAND_DISAGREEING_SHARE * lit as f32;
+            (lit, bad, broken.then(|| (k, bad as f32 / lit as f32)))
         })
-        .collect();
-    let (lit, disagreeing) = bands
-        .iter()
-        .fold((0, 0), |(l, d), &(bl, bd)| (l + bl, d + bd));
+        .reduce(
+            || (0, 0, None),
+            |a, b| {
+                let first = match (a.2, b.2) {
+                    (Some(x), Some(y)) => Some(if x.0 <= y.0 { x } else { y }),
+                    (x, y) => x.or(y),
+                };
+                (a.0 + b.0, a.1 + b.1, first)
+            },
+        );
     let whole =
         (lit > 0 && disagreeing as f32 > MAX_DISAGREEING_SHARE * lit as f32).then(|| Refusal {
             share: disagreeing as f32 / lit as f32,
             rows: 0..out.height,
         });
     out.refused = whole.or_else(|| {
-        bands.iter().enumerate().find_map(|(k, &(lit, bad))| {
-            (lit >= min_lit && bad as f32 > MAX_BAND_DISAGREEING_SHARE * lit as f32).then(|| {
-                Refusal {
-                    share: bad as f32 / lit as f32,
-                    rows: k * band..((k + 1) * band).min(out.height),
-                }
-            })
+        broken.map(|(k, share)| Refusal {
+            share,
+            rows: k * band..((k + 1) * band).min(out.height),
         })
     });
     if out.refused.is_some() {

@@ -84,15 +84,14 @@ use rayon::prelude::*;
 /// 2.5×.
 pub(super) const MIN_DET: f32 = 0.4;
 /// χ² (two degrees of freedom) of a patch's `(u, κ)` against rest above which the motion is
-/// taken as real: exceeded by chance with probability 10⁻³. Against the noise the window shows
-/// (`motion_noise`), a still hand at σ 2–4 keeps no velocity at this level, and the noise
-/// sweep's rows with checks on are those of 10⁻⁶ to every printed digit. The swaying hand's
-/// slow skin (the fingertip slides 0.5–0.8 projector px a frame) passes it where 10⁻⁶ left it
-/// uncorrected: 0 mm with sway kept 95.3 → 97.3 % of the moving skin with 0.28 → 0.10 % gross,
-/// and the fingertip 93.4 → 97.8 % of its samples (docs/accuracy.md). The level 10⁻⁶ had been
-/// kept for corrupted frames, which the motion model takes for motion; those windows are now
-/// refused whole (`broken`).
-pub(super) const MOTION_SIGNIFICANCE: f32 = 13.8;
+/// taken as real: exceeded by chance with probability 10⁻⁴. Against the noise the window shows
+/// (`motion_noise`), a still hand at σ 2–4 keeps no velocity at this level (at 10⁻³, 78 pixels
+/// at σ = 4: a patch or two by chance), and the noise sweep's rows with checks on are those of
+/// 10⁻⁶ to every printed digit. The swaying hand's slow skin (the fingertip slides 0.5–0.8
+/// projector px a frame) passes it where 10⁻⁶ left it uncorrected (docs/accuracy.md, Motion,
+/// stop 50). The level 10⁻⁶ had been kept for corrupted frames, which the motion model takes
+/// for motion; their windows are now refused whole (`broken`).
+pub(super) const MOTION_SIGNIFICANCE: f32 = 18.4;
 /// The prior of a patch's velocity and brightness change before its evidence: zero, with
 /// these standard deviations (px/s and 1/s; a 20 mm tremor at 6 Hz peaks near 750 px/s on the
 /// paper's rig, a finger's side swaying 4 mm near 40/s). A patch with little evidence (the

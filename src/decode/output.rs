@@ -62,7 +62,9 @@ pub struct DecodeOutput {
     /// Invalid-reason bits of [`super::invalid`]; 0 where valid.
     pub invalid: Vec<u16>,
     /// The motion model's coordinate velocity, projector px/s (0 where the pixel is invalid;
-    /// untouched by windows decoded without the model).
+    /// untouched by windows decoded without the model). This and the next two planes are the
+    /// CPU decoder's: the GPU backend keeps its motion planes on the device and leaves them
+    /// untouched (nothing downstream of the decode reads them).
     pub velocity_px_per_s: Vec<f32>,
     /// The motion model's brightness change, relative per second (`κ`; as the velocity).
     pub brightness_rate_per_s: Vec<f32>,
