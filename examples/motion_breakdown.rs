@@ -136,6 +136,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut bins = [Bin::default(); BINS];
     let by_outline = std::env::var("BY_OUTLINE").is_ok();
     let all_skin = std::env::var("ALL_SKIN").is_ok();
+    let mut refused_windows = 0usize;
     for i in 0..frames {
         truths.rotate_left(1);
         rig.render(i, &mut frame, Some(&mut truths[2]))?;
@@ -143,6 +144,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             WindowOutcome::Decoded(out) => out,
             _ => continue,
         };
+        // Every window, compared or not: a refused one also cuts the next one's links.
+        if let Some(r) = &out.refused {
+            refused_windows += 1;
+            eprintln!("window ending at frame {i} refused: {r:?}");
+        }
         if i < 2 || (i - 2) % 3 != 0 {
             continue;
         }
@@ -234,7 +240,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         rms(sum2, valid - gross)
     );
     println!(
-        "{amplitude_mm} mm{}, {frames} frames, {total} moving px",
+        "{amplitude_mm} mm{}, {frames} frames, {total} moving px, {refused_windows} windows refused (decode::broken)",
         if sway { " with sway" } else { "" }
     );
     let label = if by_outline {

@@ -28,13 +28,13 @@
 //! the camera's rolling shutter is half way down the frame, or a transfer that filled a band of
 //! rows from another exposure. Measured on the rig's still hand with the red channel a quarter
 //! period on for rows 180–219 of one 640×400 frame (`tests/validity.rs`), the three windows
-//! holding it kept 146, 0 and 860 pixels inside the band a fringe (or more) off, and 27–53
-//! outside it, up to 19 rows away: the edge-aware average of the unit phase carries the band's
-//! coarse coordinate out of it. The windows as a whole disagreed on under 20 %. Counted in
+//! holding it kept 143, 0 and 850 pixels inside the band a fringe (or more) off, and 28–43
+//! outside it (at the motion test's 10⁻³: 146, 0, 860 and 27–53, up to 19 rows away): the
+//! edge-aware average of the unit phase carries the band's coarse coordinate out of it. The windows as a whole disagreed on under 20 %. Counted in
 //! bands of [`BAND_ROWS`] rows (scaled with the image's width from 640 px), bands inside the
 //! broken rows disagreed on 71–91 % of their lit pixels; the motion sweep's hand on at most
 //! 29 % (a 20 mm tremor with 4 mm of sway: the fingertips' fastest skin, beyond the motion
-//! model), the still hand on 0.1 %. So a window is also refused whole when a band of rows
+//! model), the still hand on 0.2 %. So a window is also refused whole when a band of rows
 //! disagrees on more than [`MAX_BAND_DISAGREEING_SHARE`] of at least [`MIN_LIT_PER_BAND`] lit
 //! pixels. (Refusing only the broken rows and 24 around them, with the stream's links cut,
 //! left the window with the broken frame in the middle 124 pixels a fringe off up to 40 rows

@@ -75,9 +75,9 @@ pub struct DecodeOutput {
     pub acceleration_px_per_s2: Vec<f32>,
     /// How long each stage took for this window.
     pub timings: StageTimings,
-    /// Set when the whole window was refused because that share of the lit pixels on those
-    /// rows broke the phase relation (a corrupted frame, [`super::broken`]); every pixel is
-    /// then [`super::invalid::BROKEN_WINDOW`].
+    /// Set when the window was refused whole (a corrupted frame, [`super::broken`]): the rows
+    /// that showed it (all of them, or the first broken band) and the share of their lit pixels
+    /// that broke the phase relation. Every pixel is then [`super::invalid::BROKEN_WINDOW`].
     pub refused: Option<super::broken::Refusal>,
     pub(crate) unit_re: Vec<f32>,
     pub(crate) unit_im: Vec<f32>,

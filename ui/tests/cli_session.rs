@@ -204,6 +204,22 @@ fn decode_and_info_fail_with_one_line() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(stderr.contains("was refused"), "{stderr}");
+    // The same on a band of 8 of the 40 rows only: refused, naming the band.
+    let mut frames: Vec<_> = (0..3).map(|i| session.load_frame(i).unwrap()).collect();
+    let band = 3 * 64 * 16..3 * 64 * 24;
+    for (dst, src) in frames[1].data[band.clone()]
+        .chunks_exact_mut(3)
+        .zip(next[band].chunks_exact(3))
+    {
+        dst[0] = src[0];
+    }
+    std::fs::remove_dir_all(&broken).unwrap();
+    tremorscan::session::write_session(&broken, session.manifest.clone(), &frames).unwrap();
+    let out = tremorscan(&["decode", s(&broken), "--frame", "2"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("on rows 16–23"), "{stderr}");
     let _ = std::fs::remove_dir_all(&broken);
     // A frame that went missing after recording.
     std::fs::remove_file(dir.join("frames/000001.png")).unwrap();
