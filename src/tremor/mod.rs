@@ -25,7 +25,8 @@ pub use follow::{locate_subpixel, FollowError, FollowOptions, SkinFollower, Text
 pub use live::{LivePoint, LiveTracker};
 pub use table::{fit_table_normal, fit_table_plane, TableFrame, TablePlane};
 pub use track::{
-    displacements, locate, pixel_of, SurfaceSlope, TrackOptions, TrackSample, VerticalAxis,
+    displacements, locate, pixel_of, MissingSamples, SurfaceSlope, TrackOptions, TrackSample,
+    VerticalAxis,
 };
 pub use window_mean::undo_window_mean;
 

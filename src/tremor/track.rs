@@ -167,6 +167,41 @@ pub fn displacements(samples: &[TrackSample], axis: &Vector3<f64>) -> Vec<Option
         })
         .collect()
 }
+/// Why a track's samples have no position: counted so that a report can say which.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MissingSamples {
+    pub total: usize,
+    /// No pixel: a followed point whose skin was not found (its match too weak, or the window
+    /// not decoded).
+    pub not_found: usize,
+    /// A pixel, but too little decoded depth around it.
+    pub no_depth: usize,
+}
+
+impl MissingSamples {
+    pub fn of(samples: &[TrackSample]) -> Self {
+        samples.iter().fold(
+            Self {
+                total: samples.len(),
+                ..Self::default()
+            },
+            |mut m, s| {
+                match (s.pixel, s.position_mm) {
+                    (None, _) => m.not_found += 1,
+                    (Some(_), None) => m.no_depth += 1,
+                    (Some(_), Some(_)) => {}
+                }
+                m
+            },
+        )
+    }
+
+    /// Share of the samples in `count`, per cent (0 without samples).
+    pub fn percent(&self, count: usize) -> f64 {
+        100.0 * count as f64 / self.total.max(1) as f64
+    }
+}
+
 /// The 3D position (camera frame, mm) of the surface at sub-pixel `pixel`, with its slope
 /// there: the valid points of the `(2·radius + 1)²` neighbourhood, outliers removed as in
 /// [`locate`], fitted by least squares as `p(u, v) = p₀ + p_u·Δu + p_v·Δv` and evaluated
@@ -241,4 +276,28 @@ pub fn locate_subpixel(
         return Some(flat);
     }
     fit(&inliers).or(Some(flat))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn missing_samples_say_whether_the_skin_or_its_depth_was_missing() {
+        let found = |position: Option<[f64; 3]>| TrackSample {
+            pixel: Some((10.0, 20.0)),
+            position_mm: position,
+            ..TrackSample::missing(0.0, 0)
+        };
+        let samples = [
+            found(Some([0.0, 0.0, 400.0])),
+            found(None),
+            TrackSample::missing(0.1, 1),
+            TrackSample::missing(0.2, 2),
+        ];
+        let m = MissingSamples::of(&samples);
+        assert_eq!((m.total, m.not_found, m.no_depth), (4, 2, 1));
+        assert_eq!(m.percent(m.not_found), 50.0);
+        assert_eq!(MissingSamples::of(&[]).percent(0), 0.0);
+    }
 }

@@ -11,7 +11,10 @@ use std::io::Write;
 use std::path::PathBuf;
 use tremorscan::decode::{frames_averaged, DecodeParams};
 use tremorscan::session::Session;
-use tremorscan::tremor::{displacements, pixel_of, AnalysisOptions, DisplacementAxis, TrackSample};
+use tremorscan::tremor::{
+    displacements, pixel_of, AnalysisOptions, DisplacementAxis, MissingSamples, PointMode,
+    TrackSample,
+};
 
 /// The control points and the vertical axis, shared by `track` and `analyze`.
 #[derive(clap::Args, Debug, Clone)]
@@ -263,6 +266,21 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
                 (100.0 * r.valid_fraction).round()
             ),
             Err(why) => println!("{}: {why}", o.name),
+        }
+    }
+    // Where a followed point's samples went missing, say why: the skin not found (a weak
+    // match: docs/accuracy.md, the fingertip followed on the skin) or no depth under it.
+    if args.control.mode.mode() == PointMode::FollowSkin {
+        for (o, track) in outcomes.iter().zip(&tracked.tracks) {
+            let m = MissingSamples::of(track);
+            if m.not_found > 0 {
+                println!(
+                    "{}: the followed skin was not found in {:.0} % of the windows and had no depth in {:.0} % (a point placed a little way in from the fingertip's rounded end follows better; --fixed-pixel measures at the pixel instead)",
+                    o.name,
+                    m.percent(m.not_found),
+                    m.percent(m.no_depth)
+                );
+            }
         }
     }
     if let Some(png) = &args.png {
