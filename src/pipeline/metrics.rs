@@ -44,7 +44,7 @@ pub struct MetricsSnapshot {
     /// Windows not decoded because a frame was missing from them.
     pub unsolvable_windows: u64,
     /// Windows decoded but refused whole: a frame broke the phase relation on most of their
-    /// lit pixels (`decode::broken`); their clouds are empty.
+    /// lit pixels, or of a band of their rows' (`decode::broken`); their clouds are empty.
     pub refused_windows: u64,
     /// Frames the real-time decode stage dropped (it keeps the newest).
     pub decode_dropped: u64,
