@@ -8,7 +8,7 @@
 use egui::Color32;
 use egui_plot::{Legend, Line, Plot, PlotPoints};
 use nalgebra::Vector3;
-use tremorscan::tremor::{displacements, DisplacementAxis, LiveTracker};
+use tremorscan::tremor::{displacements, DisplacementAxis, LiveTracker, MissingSamples, PointMode};
 
 /// The axes the plot offers, with their labels.
 const AXES: [(DisplacementAxis, &str); 5] = [
@@ -28,6 +28,8 @@ pub struct Series {
     pub times_s: Vec<f64>,
     pub displacement_mm: Vec<Option<f64>>,
     pub pixel: (f64, f64),
+    /// Why samples are missing, for a point that follows the skin (`None` at a fixed pixel).
+    pub missing: Option<MissingSamples>,
 }
 
 /// The series of every point in `tracker`, displacement along `axis` (the vertical is the
@@ -47,6 +49,7 @@ pub fn snapshot(
                 Some(unit) => displacements(&samples, &unit),
                 None => vec![None; samples.len()],
             };
+            let follows = tracker.mode() == PointMode::FollowSkin;
             Series {
                 id: p.id,
                 name: p.name.clone(),
@@ -54,6 +57,7 @@ pub fn snapshot(
                 times_s,
                 displacement_mm,
                 pixel: p.pixel,
+                missing: follows.then(|| MissingSamples::of(&samples)),
             }
         })
         .collect()

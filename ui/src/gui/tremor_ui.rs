@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use tremorscan::tremor::coherence::{
     coherence_line, pair_coherences, PairCoherence, Series as CoherenceSeries,
 };
-use tremorscan::tremor::{analyze, AnalysisOptions, TremorReport};
+use tremorscan::tremor::{analyze, AnalysisOptions, MissingSamples, TremorReport};
 
 const REFRESH: Duration = Duration::from_millis(300);
 
@@ -23,6 +23,8 @@ pub struct PointAnalysis {
     pub name: String,
     pub colour: Color32,
     pub report: Result<TremorReport, String>,
+    /// Where a followed point's samples went, when the skin was not found in some windows.
+    pub missing_line: Option<String>,
     /// With each other point.
     pub coherence: Vec<PairCoherence>,
 }
@@ -45,6 +47,17 @@ pub fn summary(r: &TremorReport) -> String {
             r.amplitude_rms_mm
         ),
     }
+}
+
+/// Why a followed point's samples are missing, as shown under its missing figures.
+pub fn missing_line(m: &MissingSamples) -> String {
+    format!(
+        "the followed skin was not found in {:.0} % of these windows, no depth in {:.0} % \
+         (a point a little way in from the fingertip's end follows better; or turn \
+         \"Follow the skin\" off)",
+        m.percent(m.not_found),
+        m.percent(m.no_depth)
+    )
 }
 
 impl TremorPanel {
@@ -80,6 +93,10 @@ impl TremorPanel {
                 name: s.name.clone(),
                 colour: s.colour,
                 report,
+                missing_line: s
+                    .missing
+                    .filter(|m| m.not_found > 0)
+                    .map(|m| missing_line(&m)),
                 coherence,
             })
             .collect();
@@ -98,6 +115,9 @@ impl TremorPanel {
                     // A missing figure says why (too few valid samples) rather than show 0 mm.
                     Err(why) if why.starts_with("figures missing") => {
                         ui.label(why);
+                        if let Some(line) = &point.missing_line {
+                            ui.label(line);
+                        }
                     }
                     Err(why) => {
                         ui.label(format!("waiting for samples: {why}"));
@@ -158,4 +178,26 @@ fn spectrum_plot_ui(ui: &mut egui::Ui, id: u64, colour: Color32, r: &TremorRepor
             );
             plot_ui.line(Line::new("PSD", PlotPoints::from(points)).color(colour));
         });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tremorscan::tremor::TrackSample;
+
+    #[test]
+    fn a_followed_point_says_how_often_its_skin_was_not_found() {
+        let mut samples = vec![TrackSample::missing(0.0, 0); 9];
+        samples.push(TrackSample {
+            pixel: Some((1.0, 2.0)),
+            ..TrackSample::missing(0.1, 1)
+        });
+        let line = missing_line(&MissingSamples::of(&samples));
+        assert!(
+            line.starts_with(
+                "the followed skin was not found in 90 % of these windows, no depth in 10 %"
+            ),
+            "{line}"
+        );
+    }
 }
