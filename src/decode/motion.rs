@@ -86,8 +86,8 @@ pub(super) const MIN_DET: f32 = 0.4;
 /// χ² (two degrees of freedom) of a patch's `(u, κ)` against rest above which the motion is
 /// taken as real: exceeded by chance with probability 10⁻⁴. Against the noise the window shows
 /// (`motion_noise`), a still hand at σ 2–4 keeps no velocity at this level (at 10⁻³, 78 pixels
-/// at σ = 4: a patch or two by chance), and the noise sweep's rows with checks on are those of
-/// 10⁻⁶ to every printed digit. The swaying hand's slow skin (the fingertip slides 0.5–0.8
+/// at σ = 4: a patch or two by chance), and the noise sweep's robust rows with checks on are
+/// those of 10⁻⁶ to every printed digit. The swaying hand's slow skin (the fingertip slides 0.5–0.8
 /// projector px a frame) passes it where 10⁻⁶ left it uncorrected (docs/accuracy.md, Motion,
 /// stop 50). The level 10⁻⁶ had been kept for corrupted frames, which the motion model takes
 /// for motion; their windows are now refused whole (`broken`).
