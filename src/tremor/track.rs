@@ -200,6 +200,16 @@ impl MissingSamples {
     pub fn percent(&self, count: usize) -> f64 {
         100.0 * count as f64 / self.total.max(1) as f64
     }
+
+    /// What a report says of a followed point's missing samples, as `analyze` and the GUI's
+    /// tremor panel print it.
+    pub fn followed_summary(&self) -> String {
+        format!(
+            "the followed skin was not found in {:.0} % of the windows and had no depth in {:.0} %",
+            self.percent(self.not_found),
+            self.percent(self.no_depth)
+        )
+    }
 }
 
 /// The 3D position (camera frame, mm) of the surface at sub-pixel `pixel`, with its slope
@@ -298,6 +308,10 @@ mod tests {
         let m = MissingSamples::of(&samples);
         assert_eq!((m.total, m.not_found, m.no_depth), (4, 2, 1));
         assert_eq!(m.percent(m.not_found), 50.0);
+        assert_eq!(
+            m.followed_summary(),
+            "the followed skin was not found in 50 % of the windows and had no depth in 25 %"
+        );
         assert_eq!(MissingSamples::of(&[]).percent(0), 0.0);
     }
 }

@@ -275,10 +275,9 @@ pub fn run_analyze(args: &AnalyzeArgs) -> Result<()> {
             let m = MissingSamples::of(track);
             if m.not_found > 0 {
                 println!(
-                    "{}: the followed skin was not found in {:.0} % of the windows and had no depth in {:.0} % (a point placed a little way in from the fingertip's rounded end follows better; --fixed-pixel measures at the pixel instead)",
+                    "{}: {} (a point placed a little way in from the fingertip's rounded end follows better; --fixed-pixel measures at the pixel instead)",
                     o.name,
-                    m.percent(m.not_found),
-                    m.percent(m.no_depth)
+                    m.followed_summary()
                 );
             }
         }

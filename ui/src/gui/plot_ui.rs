@@ -39,6 +39,7 @@ pub fn snapshot(
     axis: DisplacementAxis,
     colour: &mut impl FnMut(u64) -> Color32,
 ) -> Vec<Series> {
+    let follows = tracker.mode() == PointMode::FollowSkin;
     tracker
         .points
         .iter()
@@ -49,7 +50,6 @@ pub fn snapshot(
                 Some(unit) => displacements(&samples, &unit),
                 None => vec![None; samples.len()],
             };
-            let follows = tracker.mode() == PointMode::FollowSkin;
             Series {
                 id: p.id,
                 name: p.name.clone(),

@@ -52,11 +52,9 @@ pub fn summary(r: &TremorReport) -> String {
 /// Why a followed point's samples are missing, as shown under its missing figures.
 pub fn missing_line(m: &MissingSamples) -> String {
     format!(
-        "the followed skin was not found in {:.0} % of these windows, no depth in {:.0} % \
-         (a point a little way in from the fingertip's end follows better; or turn \
+        "{} (a point a little way in from the fingertip's end follows better; or turn \
          \"Follow the skin\" off)",
-        m.percent(m.not_found),
-        m.percent(m.no_depth)
+        m.followed_summary()
     )
 }
 
@@ -195,7 +193,7 @@ mod tests {
         let line = missing_line(&MissingSamples::of(&samples));
         assert!(
             line.starts_with(
-                "the followed skin was not found in 90 % of these windows, no depth in 10 %"
+                "the followed skin was not found in 90 % of the windows and had no depth in 10 %"
             ),
             "{line}"
         );
