@@ -7,6 +7,8 @@
 //!
 //! `cargo run --release -p tremorscan --example skin_tracking -- FRAMES POINT [still|HZ]`: the
 //! issue's hand (finger flexion 3 mm, sway 4 mm, roll 5°, 4.2 Hz, or at HZ), or a still hand.
+//! `FLEX_MM`, `SWAY_MM` and `ROLL_DEG` in the environment change the moving hand's flexion,
+//! sway and roll (the motion sweep's fingertip: `FLEX_MM=10 SWAY_MM=0 ROLL_DEG=0`).
 
 use tremorscan::decode::{frames_averaged, DecodeParams};
 use tremorscan::rig::skin_eval::{skin_tracking, TrackAgainstTruth};
@@ -27,10 +29,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     config.scene.hand = Some(if still {
         Tremor::flexion(4.2, 0.0, 0.0)
     } else {
+        let env = |name: &str, default: f64| {
+            std::env::var(name)
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(default)
+        };
         Tremor {
-            sway_amplitude_mm: 4.0,
-            roll_amplitude_deg: 5.0,
-            ..Tremor::flexion(hz, 3.0, 0.3)
+            sway_amplitude_mm: env("SWAY_MM", 4.0),
+            roll_amplitude_deg: env("ROLL_DEG", 5.0),
+            ..Tremor::flexion(hz, env("FLEX_MM", 3.0), 0.3)
         }
     });
     let sequence = config.default_sequence()?;

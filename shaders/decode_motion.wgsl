@@ -182,6 +182,14 @@ fn inconsistent(c: Cheb) -> bool {
     return (c.t.x < 0.0) || (sin2 > disagreement_limit() * c.var_over_noise);
 }
 
+// `inconsistent` of phasors whose phases are not needed (the CPU's `disagrees`); a NaN
+// disagrees.
+fn disagrees(z0: vec2<f32>, z1: vec2<f32>, z2: vec2<f32>) -> bool {
+    let c = cheb_of(z0, z1, z2, vec3<f32>(0.0), vec3<f32>(length(z0), length(z1), length(z2)));
+    let sin2 = c.t.y * c.t.y / (c.t.x * c.t.x + c.t.y * c.t.y);
+    return !((c.t.x >= 0.0) && (sin2 <= disagreement_limit() * c.var_over_noise));
+}
+
 // The projector-lit offset of each slot.
 fn lit_offsets(offsets: vec3<f32>) -> vec3<f32> {
     let lit = offsets - vec3<f32>(M[M_BIAS], M[M_BIAS + 1u], M[M_BIAS + 2u]);
@@ -493,12 +501,30 @@ fn motion_step(id: vec3<u32>, refine: bool, last: bool) {
         u = p.u;
         kappa = p.kappa;
     }
-    let s0 = correct_slot(refine, P.freq.x, phases.x, amps.x, lit.x, corrected_before, u0, k0, p.moving, u, kappa);
-    let s1 = correct_slot(refine, P.freq.y, phases.y, amps.y, lit.y, corrected_before, u0, k0, p.moving, u, kappa);
-    let s2 = correct_slot(refine, P.freq.z, phases.z, amps.z, lit.z, corrected_before, u0, k0, p.moving, u, kappa);
-    let within = !p.moving || (p.bright_ok && s0.within && s1.within && s2.within);
+    var moving = p.moving;
+    var bright_ok = p.bright_ok;
+    var s0 = correct_slot(refine, P.freq.x, phases.x, amps.x, lit.x, corrected_before, u0, k0, moving, u, kappa);
+    var s1 = correct_slot(refine, P.freq.y, phases.y, amps.y, lit.y, corrected_before, u0, k0, moving, u, kappa);
+    var s2 = correct_slot(refine, P.freq.z, phases.z, amps.z, lit.z, corrected_before, u0, k0, moving, u, kappa);
+    // A step that breaks a consistent correction is refused for this pixel: it keeps the
+    // previous step's, redone at (u0, k0) (src/decode/motion.rs).
+    if (corrected_before && disagrees(s0.z, s1.z, s2.z)) {
+        let k0s = correct_slot(refine, P.freq.x, phases.x, amps.x, lit.x, true, u0, k0, true, u0, k0);
+        let k1s = correct_slot(refine, P.freq.y, phases.y, amps.y, lit.y, true, u0, k0, true, u0, k0);
+        let k2s = correct_slot(refine, P.freq.z, phases.z, amps.z, lit.z, true, u0, k0, true, u0, k0);
+        if (!disagrees(k0s.z, k1s.z, k2s.z)) {
+            s0 = k0s;
+            s1 = k1s;
+            s2 = k2s;
+            u = u0;
+            kappa = k0;
+            moving = true;
+            bright_ok = true;
+        }
+    }
+    let within = !moving || (bright_ok && s0.within && s1.within && s2.within);
     var worst_det = 1.0;
-    if (p.moving) {
+    if (moving) {
         worst_det = min(s0.det, min(s1.det, s2.det));
     }
     state[VELOCITY * n + i] = u;
@@ -516,18 +542,18 @@ fn motion_step(id: vec3<u32>, refine: bool, last: bool) {
             slope_at_rest(s2.still, lit.z, P.freq.z),
         );
         let dz = array<vec4<f32>, 3>(
-            select(rest[0], s0.dz, p.moving),
-            select(rest[1], s1.dz, p.moving),
-            select(rest[2], s2.dz, p.moving),
+            select(rest[0], s0.dz, moving),
+            select(rest[1], s1.dz, moving),
+            select(rest[2], s2.dz, moving),
         );
         let z = array<vec2<f32>, 3>(s0.z, s1.z, s2.z);
         write_evidence(i, evidence_with(z, dz, c, keep, vec2<f32>(u, kappa)), keep);
         return;
     }
     let leak = vec3<f32>(
-        leak_of_slot(P.freq.x, p.moving, u, kappa, s0.z),
-        leak_of_slot(P.freq.y, p.moving, u, kappa, s1.z),
-        leak_of_slot(P.freq.z, p.moving, u, kappa, s2.z),
+        leak_of_slot(P.freq.x, moving, u, kappa, s0.z),
+        leak_of_slot(P.freq.y, moving, u, kappa, s1.z),
+        leak_of_slot(P.freq.z, moving, u, kappa, s2.z),
     );
     for (var j = 0u; j < 3u; j++) {
         // Row j of A, its columns in slot order.

@@ -537,4 +537,65 @@ mod tests {
             );
         }
     }
+
+    #[test]
+    fn a_second_step_that_breaks_a_consistent_correction_keeps_the_first() {
+        // Pixels the first step corrected at 150 px/s, their phasors now consistent (the
+        // Chebyshev residual 0), whose patch's evidence then points far away (−450 px/s) or
+        // near (180 px/s). Far: the new correction breaks the Chebyshev relation, so the pixel
+        // keeps 150 px/s and stays valid. Near: the step applies.
+        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
+        let solver = WindowSolver::new(&seq, &[0, 1, 2], &CrossTalk::paper()).unwrap();
+        let basis = MotionBasis::new(&solver, [0.0, 1.0 / 121.0, 2.0 / 121.0]).unwrap();
+        let step = Step {
+            basis: &basis,
+            gain2: gain2(&solver),
+            limit: 25.0 * 4.0,
+            min_amplitude: 4.0,
+            kind: StepKind::Refine,
+            last: true,
+            prior_u: (2.0f32 / 400.0).powi(2),
+            prior_k: (2.0f32 / 20.0).powi(2),
+            inv_noise2: 0.25,
+            inv_since: 0.0,
+            max_velocity_change: 0.0,
+            shift_per_velocity_change: 0.0,
+        };
+        let w = 16;
+        let mut row = Row::varied(w);
+        for x in 0..w {
+            let coordinate_px = 37.0 * x as f32 + 11.0;
+            for slot in 0..3 {
+                row.phase[slot][x] = (basis.f_rad_per_px[slot] * coordinate_px)
+                    .rem_euclid(std::f32::consts::TAU);
+                row.amp[slot][x] = 150.0;
+                row.offset[slot][x] = 80.0;
+            }
+            let target_px_per_s = if x % 2 == 0 { -450.0 } else { 180.0 };
+            let (uu, kk) = (0.1, 0.02);
+            let values = [uu, 0.0, kk, uu * target_px_per_s, 0.0, 10.0];
+            for (plane, value) in row.evidence.iter_mut().zip(values) {
+                plane[x] = value;
+            }
+            row.flags[x] = 0;
+            row.velocity[x] = 150.0;
+            row.brightness[x] = 0.0;
+        }
+        correct_row(&step, row.planes().block(0, w));
+        let mut kept_first = 0;
+        for x in 0..w {
+            let (u, flags) = (row.velocity[x], row.flags[x]);
+            // None is lost: a step that would break the pixel is refused.
+            assert_eq!(flags, 0, "pixel {x}: flags {flags:#x}, velocity {u}");
+            if x % 2 == 0 {
+                // Far: the first correction kept, or (where the new one happens to keep the
+                // relation, as at some coordinates it does) the new one.
+                assert!(u == 150.0 || (u + 450.0).abs() < 1.0, "pixel {x}: {u}");
+                kept_first += usize::from(u == 150.0);
+            } else {
+                assert!((u - 180.0).abs() < 1.0, "pixel {x}: {u}");
+            }
+        }
+        assert!(kept_first >= w / 4, "{kept_first} kept their first correction");
+    }
 }

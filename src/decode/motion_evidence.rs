@@ -71,6 +71,22 @@ pub(crate) fn inconsistent(c: &Chebyshev3, limit: f32) -> bool {
     (tr < 0.0) | (sin2 > limit * c.var_over_noise)
 }
 
+/// [`inconsistent`] for phasors `z` whose phases and amplitudes are not needed: the residual
+/// from their products and the variance from their squared amplitudes, no arctangents or roots.
+#[inline(always)]
+pub(super) fn disagrees(z: [(f32, f32); 3], gain2: (f32, f32, f32), limit: f32) -> bool {
+    let [(c0, s0), (c1, s1), (c2, s2)] = z;
+    let (pr, pi) = (c0 * c1 + s0 * s1, s0 * c1 - c0 * s1);
+    let (qr, qi) = (c1 * c2 + s1 * s2, s1 * c2 - c1 * s2);
+    let (tr, ti) = (pr * qr + pi * qi, pi * qr - pr * qi);
+    let var_over_noise = gain2.0 / (c0 * c0 + s0 * s0)
+        + gain2.1 / (c1 * c1 + s1 * s1)
+        + gain2.2 / (c2 * c2 + s2 * s2);
+    let sin2 = ti * ti / (tr * tr + ti * ti);
+    // A NaN (a zero phasor) disagrees.
+    !((tr >= 0.0) & (sin2 <= limit * var_over_noise))
+}
+
 /// The squared noise gains of `solver`'s slots, as [`chebyshev3`] takes them.
 pub(crate) fn gain2(solver: &WindowSolver) -> (f32, f32, f32) {
     let g = &solver.noise_gain;

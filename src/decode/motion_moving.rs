@@ -16,7 +16,7 @@ use super::invalid;
 use super::motion::{StepKind, MIN_DET};
 use super::motion_basis::{apply, MotionBasis, MAX_TURN_RAD};
 use super::motion_correct::{bit, patch_step, PatchStep, RowPlanes, Step, BLOCK};
-use super::motion_evidence::{chebyshev3, evidence_with, inconsistent};
+use super::motion_evidence::{chebyshev3, disagrees, evidence_with, inconsistent};
 
 /// Marked pixels of a row, gathered into arrays, so that the full model runs over them in one
 /// branch-free loop that vectorises; `index` says where in the row each came from. The
@@ -242,13 +242,34 @@ fn correct_slots<const REFINE: bool>(
     let slot0 = correct_slot::<REFINE>(basis, 0, (phases[0], amps[0], lit[0]), before, now);
     let slot1 = correct_slot::<REFINE>(basis, 1, (phases[1], amps[1], lit[1]), before, now);
     let slot2 = correct_slot::<REFINE>(basis, 2, (phases[2], amps[2], lit[2]), before, now);
-    out.set_slot(0, x, &slot0);
-    out.set_slot(1, x, &slot1);
-    out.set_slot(2, x, &slot2);
-    out.u[x] = u;
-    out.kappa[x] = kappa;
-    out.moving[x] = moving;
-    out.bright_ok[x] = bright_ok;
+    if !REFINE {
+        out.set_slot(0, x, &slot0);
+        out.set_slot(1, x, &slot1);
+        out.set_slot(2, x, &slot2);
+        out.u[x] = u;
+        out.kappa[x] = kappa;
+        out.moving[x] = moving;
+        out.bright_ok[x] = bright_ok;
+        return;
+    }
+    // A step that breaks a consistent correction is refused for this pixel
+    // ([`super::motion`], "A step is kept only where it does not break the pixel"): it keeps
+    // the previous step's correction, redone at `(u0, κ0)`.
+    let then = (corrected_before, u0, k0);
+    let kept0 = correct_slot::<REFINE>(basis, 0, (phases[0], amps[0], lit[0]), before, then);
+    let kept1 = correct_slot::<REFINE>(basis, 1, (phases[1], amps[1], lit[1]), before, then);
+    let kept2 = correct_slot::<REFINE>(basis, 2, (phases[2], amps[2], lit[2]), before, then);
+    let keep_previous = corrected_before
+        & disagrees([slot0.z, slot1.z, slot2.z], step.gain2, step.limit)
+        & !disagrees([kept0.z, kept1.z, kept2.z], step.gain2, step.limit);
+    out.set_slot(0, x, &SlotCorrection::select(keep_previous, kept0, slot0));
+    out.set_slot(1, x, &SlotCorrection::select(keep_previous, kept1, slot1));
+    out.set_slot(2, x, &SlotCorrection::select(keep_previous, kept2, slot2));
+    out.u[x] = if keep_previous { u0 } else { u };
+    out.kappa[x] = if keep_previous { k0 } else { kappa };
+    // The previous brightness change was clamped to the model's range when it was applied.
+    out.moving[x] = moving | keep_previous;
+    out.bright_ok[x] = bright_ok | keep_previous;
 }
 
 /// The second half, for the same pixel: write the next step's evidence or (on the last step)
@@ -353,6 +374,23 @@ struct SlotCorrection {
     dz: [(f32, f32); 2],
     within: bool,
     det: f32,
+}
+
+impl SlotCorrection {
+    /// `a` if `choose`, else `b`, field by field: no branches.
+    #[inline(always)]
+    fn select(choose: bool, a: Self, b: Self) -> Self {
+        Self {
+            still: select2(choose, a.still, b.still),
+            z: select2(choose, a.z, b.z),
+            dz: [
+                select2(choose, a.dz[0], b.dz[0]),
+                select2(choose, a.dz[1], b.dz[1]),
+            ],
+            within: if choose { a.within } else { b.within },
+            det: if choose { a.det } else { b.det },
+        }
+    }
 }
 
 /// Slot `slot` with phase, amplitude and lit offset `(phase, amp, lit)`, corrected before at
