@@ -17,6 +17,7 @@
 //! `WIDTH` and `HEIGHT` (640×400 by default); for the rig, `SWAY_MM` and `ROLL_DEG` (the
 //! parts of `sway`, 4 mm and 3° by default), `TEXTURE` (the skin's texture contrast), `PSF`
 //! (the lens's σ, px) and `SUBSURFACE` (the skin's blur of the pattern, projector px).
+//! The median time of the motion model's stage over the decoded windows goes to stderr.
 //! `STILL=1` also prints, per window, the share of every lit pixel refused for each flag.
 //! `BY_OUTLINE=1` tallies by the distance to the nearest pixel that is not skin in one of the
 //! window's frames instead of by turn, and `ALL_SKIN=1` counts the still skin too. The
@@ -137,6 +138,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let by_outline = std::env::var("BY_OUTLINE").is_ok();
     let all_skin = std::env::var("ALL_SKIN").is_ok();
     let mut refused_windows = 0usize;
+    let mut motion_ms: Vec<f64> = Vec::new();
     for i in 0..frames {
         truths.rotate_left(1);
         rig.render(i, &mut frame, Some(&mut truths[2]))?;
@@ -144,6 +146,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             WindowOutcome::Decoded(out) => out,
             _ => continue,
         };
+        motion_ms.push(out.timings.motion_ms);
         // Every window, compared or not: a refused one also cuts the next one's links.
         if let Some(r) = &out.refused {
             refused_windows += 1;
@@ -228,6 +231,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
             }
         }
+    }
+    motion_ms.sort_by(f64::total_cmp);
+    if let Some(median) = motion_ms.get(motion_ms.len() / 2) {
+        eprintln!(
+            "motion model: median {median:.2} ms over {} windows",
+            motion_ms.len()
+        );
     }
     let total: usize = bins.iter().map(|b| b.counted).sum();
     let valid: usize = bins.iter().map(|b| b.valid).sum();

@@ -566,8 +566,8 @@ mod tests {
         for x in 0..w {
             let coordinate_px = 37.0 * x as f32 + 11.0;
             for slot in 0..3 {
-                row.phase[slot][x] = (basis.f_rad_per_px[slot] * coordinate_px)
-                    .rem_euclid(std::f32::consts::TAU);
+                row.phase[slot][x] =
+                    (basis.f_rad_per_px[slot] * coordinate_px).rem_euclid(std::f32::consts::TAU);
                 row.amp[slot][x] = 150.0;
                 row.offset[slot][x] = 80.0;
             }
@@ -596,6 +596,9 @@ mod tests {
                 assert!((u - 180.0).abs() < 1.0, "pixel {x}: {u}");
             }
         }
-        assert!(kept_first >= w / 4, "{kept_first} kept their first correction");
+        assert!(
+            kept_first >= w / 4,
+            "{kept_first} kept their first correction"
+        );
     }
 }
