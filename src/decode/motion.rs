@@ -72,7 +72,7 @@
 //! on the motion sweep (docs/accuracy.md, Motion, stop 51): the swaying hand keeps 0.2–0.4
 //! points more of its moving skin, with the same gross errors; the optical-axis rows do not
 //! change. The second step was losing 0.9 % of the moving skin that the first had kept (and
-//! gaining 0.5 %), mostly to this test.
+//! gaining 0.5 %), most of it to the Chebyshev test; with the rule it loses 0.6 %.
 //!
 //! **Acceleration.** Where the tremor turns back the velocity changes fast and the three-step
 //! solve returns the frames' mean coordinate rather than the centre's; the shift, `a·mean(τ²)/2`,

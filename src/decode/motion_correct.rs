@@ -542,8 +542,9 @@ mod tests {
     fn a_second_step_that_breaks_a_consistent_correction_keeps_the_first() {
         // Pixels the first step corrected at 150 px/s, their phasors now consistent (the
         // Chebyshev residual 0), whose patch's evidence then points far away (−450 px/s) or
-        // near (180 px/s). Far: the new correction breaks the Chebyshev relation, so the pixel
-        // keeps 150 px/s and stays valid. Near: the step applies.
+        // near (180 px/s). Far: where the new correction would break the Chebyshev relation
+        // (at most of these coordinates), the pixel keeps 150 px/s and stays valid. Near: the
+        // step applies.
         let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
         let solver = WindowSolver::new(&seq, &[0, 1, 2], &CrossTalk::paper()).unwrap();
         let basis = MotionBasis::new(&solver, [0.0, 1.0 / 121.0, 2.0 / 121.0]).unwrap();
