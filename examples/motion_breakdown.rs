@@ -127,6 +127,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(v) = env("MOVING_DECAY") {
         params.motion.moving_unit_decay = (v > 0.0).then_some(v);
     }
+    if let Some(v) = env("OFFSET_BRIGHTNESS") {
+        params.motion.offset_brightness_weight = v;
+    }
     if let Some(v) = env("MOTION_BLOCK") {
         params.motion.block_px = v as u32;
     }

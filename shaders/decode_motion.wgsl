@@ -73,6 +73,9 @@ const M_CHECK_TIME: u32 = 87u;
 const M_WIDE_DECAY: u32 = 88u;
 const M_WIDE_HALO: u32 = 89u;
 const M_WIDE_UNIT_PER_FINE: u32 = 90u;
+// The weight of each moving pixel's brightness change from its lit offsets in the previous
+// window and this one, beside its patch's, on the last refining step (0: none).
+const M_OFFSET_WEIGHT: u32 = 91u;
 
 // Planes of `work` beyond decode.wgsl's: the evidence (ue, ke, count) and its sums' scratch.
 const UE: u32 = 7u;
@@ -89,6 +92,8 @@ const PATCH_VELOCITY: u32 = 4u;
 const PATCH_BITS: u32 = 5u;
 const RECENT: u32 = 6u;
 const AGE: u32 = 7u;
+// The sum of each pixel's lit offsets in the last window (src/decode/motion_moving.rs).
+const LIT_SUM: u32 = 8u;
 
 const MOTION: u32 = 128u;
 const MOVING: u32 = 1u;
@@ -400,6 +405,30 @@ fn correct_slot(refine: bool, f: f32, phase: f32, amp: f32, lit: f32, corrected_
     );
 }
 
+// The pixel's brightness change from its lit offsets in the previous window and this one, this
+// window's without the fringe the previous step's correction leaked into them; x: the rate,
+// y: 1 where it is taken (src/decode/motion_moving.rs, brightness_from_offsets).
+fn brightness_from_offsets(i: u32, phases: vec3<f32>, amps: vec3<f32>, offsets: vec3<f32>,
+                           corrected_before: bool, u0: f32, k0: f32) -> vec2<f32> {
+    let leak = vec3<f32>(
+        leak_of_slot(P.freq.x, corrected_before, u0, k0, phasor_of(phases.x, amps.x)),
+        leak_of_slot(P.freq.y, corrected_before, u0, k0, phasor_of(phases.y, amps.y)),
+        leak_of_slot(P.freq.z, corrected_before, u0, k0, phasor_of(phases.z, amps.z)),
+    );
+    var now_offsets = offsets;
+    for (var j = 0u; j < 3u; j++) {
+        let mix = vec3<f32>(M[M_MIX + j], M[M_MIX + 3u + j], M[M_MIX + 6u + j]);
+        now_offsets[j] = offsets[j] - dot(mix, leak);
+    }
+    let lit = lit_offsets(now_offsets);
+    let now = lit.x + lit.y + lit.z;
+    let before = state[LIT_SUM * P.n + i];
+    let rate = (now - before) * M[M_INV_SINCE] / now;
+    let taken = (M[M_OFFSET_WEIGHT] > 0.0) && (M[M_INV_SINCE] > 0.0) && (before > 0.0)
+        && (now > 0.0) && (abs(rate) <= M[M_MAX_KAPPA]);
+    return vec2<f32>(rate, select(0.0, 1.0, taken));
+}
+
 // The fringe the motion leaks into a slot's offset.
 fn leak_of_slot(f: f32, moving: bool, u: f32, kappa: f32, z: vec2<f32>) -> f32 {
     if (!moving) {
@@ -487,6 +516,7 @@ fn motion_step(id: vec3<u32>, refine: bool, last: bool) {
         state[VELOCITY * n + i] = 0.0;
         state[BRIGHTNESS * n + i] = 0.0;
         if (last) {
+            state[LIT_SUM * n + i] = lit.x + lit.y + lit.z;
             write_unit(i, c, reason_bits(c, bits[FLAGS * n + i]));
         } else {
             let keep = select(0.0, 1.0, bits[FLAGS * n + i] == 0u);
@@ -500,6 +530,13 @@ fn motion_step(id: vec3<u32>, refine: bool, last: bool) {
     if (p.moving) {
         u = p.u;
         kappa = p.kappa;
+        if (refine && last) {
+            let measured = brightness_from_offsets(i, phases, amps, offsets, corrected_before, u0, k0);
+            if (measured.y > 0.0) {
+                let w = M[M_OFFSET_WEIGHT];
+                kappa = (1.0 - w) * kappa + w * measured.x;
+            }
+        }
     }
     var moving = p.moving;
     var bright_ok = p.bright_ok;
@@ -560,6 +597,8 @@ fn motion_step(id: vec3<u32>, refine: bool, last: bool) {
         let mix = vec3<f32>(M[M_MIX + j], M[M_MIX + 3u + j], M[M_MIX + 6u + j]);
         solved[(COLOUR + j) * n + i] = offsets[j] - dot(mix, leak);
     }
+    let lit_now = lit_offsets(vec3<f32>(solved[COLOUR * n + i], solved[(COLOUR + 1u) * n + i], solved[(COLOUR + 2u) * n + i]));
+    state[LIT_SUM * n + i] = lit_now.x + lit_now.y + lit_now.z;
     var reason = reason_bits(c, bits[FLAGS * n + i]);
     if (!within || (worst_det < M[M_MIN_DET])) {
         reason |= MOTION;

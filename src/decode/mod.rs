@@ -155,6 +155,10 @@ pub struct MotionParams {
     /// coordinate of every pixel the model found moving ([`smooth_moving`]); `None`: every
     /// pixel takes the one average of [`SmoothingParams`].
     pub moving_unit_decay: Option<f32>,
+    /// The weight, beside its patch's, of each moving pixel's own brightness change, measured
+    /// from its projector-lit offsets in the previous window and this one, on the last
+    /// Gauss–Newton step (0: the patch's alone; `motion_moving`).
+    pub offset_brightness_weight: f32,
 }
 
 impl MotionParams {
@@ -189,6 +193,12 @@ impl Default for MotionParams {
             // without it, 94.9 % and 0.21 % at 0.95; wider keeps more but takes the 10 mm RMS
             // past 0.17 mm (0.99: 0.173). The decay study: docs/accuracy.md, Motion, stop 48.
             moving_unit_decay: Some(0.95),
+            // The two estimates' errors, measured on the rig's moving skin against its
+            // brightness change rendered under flat light: the patch's 2.8/s at a 10 mm tremor
+            // and 3.6–3.9/s with sway, the offsets' 2.5/s and 4.6–5.0/s. Their weights by
+            // inverse variance are 0.55 and 0.35–0.41; 0.4 serves both (docs/accuracy.md,
+            // Motion, stop 52: 0.3–0.7 measured).
+            offset_brightness_weight: 0.4,
         }
     }
 }

@@ -174,6 +174,11 @@ pub(crate) fn motion_step(
         inv_since: constants.inv_since,
         shift_per_velocity_change: constants.shift_per_velocity_change,
         max_velocity_change: constants.max_velocity_change,
+        offset_brightness_weight: if kind == StepKind::Refine && last && previous_s.is_some() {
+            params.motion.offset_brightness_weight
+        } else {
+            0.0
+        },
     };
     let block = params.motion.block_size();
     if block > 1 {
@@ -217,6 +222,7 @@ pub(crate) fn motion_step(
         .zip(out.acceleration_px_per_s2.par_chunks_mut(w))
         .zip(out.patch_velocity_px_per_s.par_chunks_mut(w))
         .zip(out.patch_moving.par_chunks_mut(w))
+        .zip(out.lit_offset_sum.par_chunks_mut(w))
         .for_each(
             |(
                 (
@@ -225,20 +231,26 @@ pub(crate) fn motion_step(
                             (
                                 (
                                     (
-                                        (((((((phase, amp), colour), re), im), support), ue), ke),
-                                        count,
+                                        (
+                                            (
+                                                ((((((phase, amp), colour), re), im), support), ue),
+                                                ke,
+                                            ),
+                                            count,
+                                        ),
+                                        flags,
                                     ),
-                                    flags,
+                                    velocity,
                                 ),
-                                velocity,
+                                brightness,
                             ),
-                            brightness,
+                            acceleration,
                         ),
-                        acceleration,
+                        patch_velocity,
                     ),
-                    patch_velocity,
+                    patch_moving,
                 ),
-                patch_moving,
+                lit_sum,
             )| {
                 correct_row(
                     &step,
@@ -258,6 +270,7 @@ pub(crate) fn motion_step(
                         acceleration,
                         patch_velocity,
                         patch_moving,
+                        lit_sum,
                     },
                 );
             },

@@ -56,6 +56,7 @@ fn step_in_blocks_of<const B: usize>(step: &Step<'_>, decay: f32, out: &mut Deco
         .zip(out.acceleration_px_per_s2.par_chunks_mut(band))
         .zip(out.patch_velocity_px_per_s.par_chunks_mut(band))
         .zip(out.patch_moving.par_chunks_mut(band))
+        .zip(out.lit_offset_sum.par_chunks_mut(band))
         .zip(blocks.next.par_chunks_mut(6 * bw))
         .enumerate()
         .for_each_init(
@@ -68,18 +69,24 @@ fn step_in_blocks_of<const B: usize>(step: &Step<'_>, decay: f32, out: &mut Deco
                                 (
                                     (
                                         (
-                                            (((((phase, amp), colour), unit_re), unit_im), support),
-                                            flags,
+                                            (
+                                                (
+                                                    ((((phase, amp), colour), unit_re), unit_im),
+                                                    support,
+                                                ),
+                                                flags,
+                                            ),
+                                            velocity,
                                         ),
-                                        velocity,
+                                        brightness,
                                     ),
-                                    brightness,
+                                    acceleration,
                                 ),
-                                acceleration,
+                                patch_velocity,
                             ),
-                            patch_velocity,
+                            patch_moving,
                         ),
-                        patch_moving,
+                        lit_sum,
                     ),
                     next,
                 ) = planes;
@@ -112,6 +119,7 @@ fn step_in_blocks_of<const B: usize>(step: &Step<'_>, decay: f32, out: &mut Deco
                             acceleration: &mut acceleration[px.clone()],
                             patch_velocity: &mut patch_velocity[px.clone()],
                             patch_moving: &mut patch_moving[px.clone()],
+                            lit_sum: &mut lit_sum[px.clone()],
                         },
                     );
                     if step.last {

@@ -52,6 +52,11 @@ pub(super) struct Step<'a> {
     pub(super) max_velocity_change: f32,
     /// The shift of the window's mean coordinate per unit of velocity change, s.
     pub(super) shift_per_velocity_change: f32,
+    /// The weight of each pixel's brightness change measured from its lit offsets in the
+    /// previous window and this one, beside its patch's (0: the patch's alone;
+    /// [`super::MotionParams::offset_brightness_weight`], taken on the last step of a refining
+    /// model when the previous window was the one just before).
+    pub(super) offset_brightness_weight: f32,
 }
 
 /// One row (or one block of a row) of every plane a step reads and writes; every slice has the
@@ -75,6 +80,9 @@ pub(super) struct RowPlanes<'a> {
     pub(super) patch_velocity: &'a mut [f32],
     /// Whether the previous window's patch velocity was significant, replaced likewise.
     pub(super) patch_moving: &'a mut [u8],
+    /// The previous window's sum of the pixel's lit offsets, replaced by this window's on the
+    /// last step.
+    pub(super) lit_sum: &'a mut [f32],
 }
 
 impl RowPlanes<'_> {
@@ -112,6 +120,7 @@ impl RowPlanes<'_> {
             acceleration: &mut self.acceleration[start..end],
             patch_velocity: &mut self.patch_velocity[start..end],
             patch_moving: &mut self.patch_moving[start..end],
+            lit_sum: &mut self.lit_sum[start..end],
         }
     }
 }
@@ -310,6 +319,9 @@ fn still_pass<const REFINE: bool, const LAST: bool>(
         row.velocity[x] = keep_if(0.0, row.velocity[x]);
         row.brightness[x] = keep_if(0.0, row.brightness[x]);
         if LAST {
+            let offsets = [row.offset[0][x], row.offset[1][x], row.offset[2][x]];
+            let lit = basis.lit_offsets(offsets);
+            row.lit_sum[x] = keep_if(lit[0] + lit[1] + lit[2], row.lit_sum[x]);
             let min_amp = cheb.amplitude[0]
                 .min(cheb.amplitude[1])
                 .min(cheb.amplitude[2]);

@@ -36,6 +36,7 @@ pub(super) struct Gathered {
     /// Not read by the full model (the first pass took the acceleration): never copied.
     patch_velocity: [f32; BLOCK],
     patch_moving: [u8; BLOCK],
+    lit_sum: [f32; BLOCK],
 }
 
 impl Default for Gathered {
@@ -52,6 +53,7 @@ impl Default for Gathered {
             acceleration: [0.0; BLOCK],
             patch_velocity: [0.0; BLOCK],
             patch_moving: [0; BLOCK],
+            lit_sum: [0.0; BLOCK],
         }
     }
 }
@@ -79,6 +81,7 @@ impl Gathered {
             acceleration: &mut self.acceleration,
             patch_velocity: &mut self.patch_velocity,
             patch_moving: &mut self.patch_moving,
+            lit_sum: &mut self.lit_sum,
         }
     }
 }
@@ -101,6 +104,7 @@ pub(super) fn copy_pixel(from: &RowPlanes<'_>, i: usize, to: &mut RowPlanes<'_>,
     to.velocity[j] = from.velocity[i];
     to.brightness[j] = from.brightness[i];
     to.acceleration[j] = from.acceleration[i];
+    to.lit_sum[j] = from.lit_sum[i];
 }
 
 /// The second pass over a block's gathered pixels: a function of its own, whose planes the
@@ -232,9 +236,20 @@ fn correct_slots<const REFINE: bool>(
     let amps = [row.amp[0][x], row.amp[1][x], row.amp[2][x]];
     let offsets = [row.offset[0][x], row.offset[1][x], row.offset[2][x]];
     let lit = basis.lit_offsets(offsets);
-    let (u, kappa) = if moving { (u, kappa) } else { (0.0, 0.0) };
     // Undo the previous correction, if any; correct only where the patch moves.
     let corrected_before = REFINE & ((u0 != 0.0) | (k0 != 0.0));
+    let kappa = if REFINE {
+        let measured = brightness_from_offsets(step, row, x, (corrected_before, u0, k0));
+        let w = step.offset_brightness_weight;
+        if measured.is_nan() {
+            kappa
+        } else {
+            (1.0 - w) * kappa + w * measured
+        }
+    } else {
+        kappa
+    };
+    let (u, kappa) = if moving { (u, kappa) } else { (0.0, 0.0) };
     // Each slot written out rather than looped over, so that the loop over the gathered pixels
     // (which this is inlined into) has no inner loop and vectorises.
     let before = (corrected_before, u0, k0);
@@ -270,6 +285,45 @@ fn correct_slots<const REFINE: bool>(
     // The previous brightness change was clamped to the model's range when it was applied.
     out.moving[x] = moving | keep_previous;
     out.bright_ok[x] = bright_ok | keep_previous;
+}
+
+/// The pixel's brightness change from its lit offsets in the previous window and in this one
+/// (`(L − L_prev)/(Δt·L)`, per second), this window's without the fringe the previous step's
+/// correction `(u0, κ0)` says motion leaked into them; NaN where the step takes none (a weight
+/// of 0), a sum is not positive, or the change is beyond the model's range (at an outline the
+/// pixel may have seen another surface then).
+#[inline(always)]
+fn brightness_from_offsets(
+    step: &Step<'_>,
+    row: &RowPlanes<'_>,
+    x: usize,
+    previous: (bool, f32, f32),
+) -> f32 {
+    let basis = step.basis;
+    let phasor = |slot: usize| {
+        let (s, c) = sin_cos_phase(row.phase[slot][x]);
+        (row.amp[slot][x] * c, row.amp[slot][x] * s)
+    };
+    let leak = [
+        leak_of_slot(basis, 0, previous, phasor(0)),
+        leak_of_slot(basis, 1, previous, phasor(1)),
+        leak_of_slot(basis, 2, previous, phasor(2)),
+    ];
+    let offsets = [0, 1, 2].map(|c| row.offset[c][x] - dot3(basis.mix_of_slot_row(c), leak));
+    let lit = basis.lit_offsets(offsets);
+    let now = lit[0] + lit[1] + lit[2];
+    let before = row.lit_sum[x];
+    let rate = (now - before) * step.inv_since / now;
+    let taken = (step.offset_brightness_weight > 0.0)
+        & (step.inv_since > 0.0)
+        & (before > 0.0)
+        & (now > 0.0)
+        & (rate.abs() <= basis.max_brightness_rate);
+    if taken {
+        rate
+    } else {
+        f32::NAN
+    }
 }
 
 /// The second half, for the same pixel: write the next step's evidence or (on the last step)
@@ -344,6 +398,8 @@ fn finish_pixel<const LAST: bool>(
     for slot in 0..3 {
         row.offset[slot][x] = offsets[slot] - dot3(basis.mix_of_slot_row(slot), leak);
     }
+    let lit_now = basis.lit_offsets([row.offset[0][x], row.offset[1][x], row.offset[2][x]]);
+    row.lit_sum[x] = lit_now[0] + lit_now[1] + lit_now[2];
     let min_amp = cheb.amplitude[0]
         .min(cheb.amplitude[1])
         .min(cheb.amplitude[2]);

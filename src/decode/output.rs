@@ -101,6 +101,10 @@ pub struct DecodeOutput {
     pub(crate) patch_velocity_time_s: f64,
     /// Whether that velocity was significant (1) or not (0).
     pub(crate) patch_moving: Vec<u8>,
+    /// The sum of every pixel's projector-lit offsets (its slots', gray levels) in the same
+    /// window, without the fringe that motion leaked into them: the brightness change's other
+    /// end (`motion_moving`).
+    pub(crate) lit_offset_sum: Vec<f32>,
     /// Each pixel's last valid coordinate in the motion model's recent windows (NaN before
     /// any), projector px, how many windows ago it was, and the time of the window that last
     /// updated them: the temporal order check's reference (`temporal`).
@@ -185,6 +189,7 @@ impl DecodeOutput {
             patch_velocity_px_per_s: vec![f32::NAN; n],
             patch_velocity_time_s: f64::NAN,
             patch_moving: vec![0; n],
+            lit_offset_sum: vec![f32::NAN; n],
             recent_coordinate_px: vec![f32::NAN; n],
             recent_age_windows: vec![u8::MAX; n],
             recent_time_s: f64::NAN,
@@ -231,6 +236,7 @@ impl DecodeOutput {
             + self.brightness_rate_per_s.capacity()
             + self.acceleration_px_per_s2.capacity()
             + self.patch_velocity_px_per_s.capacity()
+            + self.lit_offset_sum.capacity()
             + self.recent_coordinate_px.capacity()
             + self.motion_evidence.capacity()
             + self.unit_re.capacity()

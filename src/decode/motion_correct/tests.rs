@@ -22,6 +22,7 @@ struct Row {
     acceleration: Vec<f32>,
     patch_velocity: Vec<f32>,
     patch_moving: Vec<u8>,
+    lit_sum: Vec<f32>,
 }
 
 impl Row {
@@ -47,6 +48,7 @@ impl Row {
             acceleration: vec![],
             patch_velocity: vec![],
             patch_moving: vec![],
+            lit_sum: vec![],
         };
         for _ in 0..w {
             for slot in 0..3 {
@@ -89,6 +91,16 @@ impl Row {
             row.acceleration.push(0.0);
             row.patch_velocity.push(300.0 * (next() - 0.5));
             row.patch_moving.push(u8::from(next() < 0.5));
+            // The previous window's lit offsets: near this one's (a brightness change the
+            // model takes), far from it (one it does not), or none.
+            let lit_now: f32 = (0..3)
+                .map(|slot| row.offset[slot][row.offset[slot].len() - 1])
+                .sum();
+            row.lit_sum.push(match (3.0 * next()) as u32 {
+                0 => lit_now * (1.0 + 0.1 * (next() - 0.5)),
+                1 => lit_now * 3.0,
+                _ => f32::NAN,
+            });
         }
         row
     }
@@ -115,6 +127,7 @@ impl Row {
             acceleration: &mut self.acceleration,
             patch_velocity: &mut self.patch_velocity,
             patch_moving: &mut self.patch_moving,
+            lit_sum: &mut self.lit_sum,
         }
     }
 
@@ -131,6 +144,7 @@ impl Row {
                 &self.brightness,
                 &self.acceleration,
                 &self.patch_velocity,
+                &self.lit_sum,
             ]);
         floats
             .flatten()
@@ -173,6 +187,7 @@ fn a_row_corrects_each_pixel_as_it_would_alone() {
             inv_since: 1.0 / since_s,
             max_velocity_change: std::f32::consts::TAU * 8.0 * since_s * basis.max_velocity,
             shift_per_velocity_change: 0.5 * basis.mean_tau2_s2 / since_s,
+            offset_brightness_weight: 0.5,
         };
         let mut whole = input.clone();
         correct_row(&step, whole.planes().block(0, w));
@@ -217,6 +232,7 @@ fn a_second_step_that_breaks_a_consistent_correction_keeps_the_first() {
         inv_since: 0.0,
         max_velocity_change: 0.0,
         shift_per_velocity_change: 0.0,
+        offset_brightness_weight: 0.0,
     };
     let w = 16;
     let mut row = Row::varied(w);

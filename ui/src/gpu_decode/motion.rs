@@ -21,12 +21,12 @@ use tremorscan::decode::smooth::recursion_halo;
 use tremorscan::decode::{motion_noise, DecodeParams, MotionBasis};
 
 /// Words of the shader's model buffer (`M` there).
-pub(super) const MODEL_WORDS: usize = MotionBasis::PACKED_WORDS + 15;
+pub(super) const MODEL_WORDS: usize = MotionBasis::PACKED_WORDS + 16;
 /// Where the window's values start (`M_ON` in the shader).
 pub const MODEL_WINDOW_OFFSET: usize = MotionBasis::PACKED_WORDS;
 /// Planes of `work` with the model (the evidence and its scratch added) and of `state`.
 pub(super) const WORK_PLANES_WITH_MOTION: usize = 13;
-pub(super) const STATE_PLANES: usize = 8;
+pub(super) const STATE_PLANES: usize = 9;
 
 /// Entry points of the model, beyond the still decode's.
 pub const MOTION_STAGES: [&str; 13] = [
@@ -202,6 +202,11 @@ pub(super) fn window_words(
         wide.unwrap_or(0.0),
         wide.map_or(0.0, |d| recursion_halo(d) as f32),
         wide.map_or(0.0, |_| 1.0 / chebyshev_n.max(1) as f32),
+        // The pixels' own brightness change only after the window just before (as the CPU's
+        // last step).
+        links
+            .previous_s
+            .map_or(0.0, |_| params.motion.offset_brightness_weight),
     ]
 }
 
