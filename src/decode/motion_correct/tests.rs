@@ -274,3 +274,91 @@ fn a_second_step_that_breaks_a_consistent_correction_keeps_the_first() {
         "{kept_first} kept their first correction"
     );
 }
+
+#[test]
+fn a_moving_pixel_weighs_its_own_brightness_change_with_its_patch() {
+    // Pixels at rest before the last step, whose patch shows 150 px/s and a brightness change
+    // of 2/s, and whose lit offsets were lower in the window just before by what 12/s makes.
+    // With the weight 0.4 each is corrected as its patch would correct it at 0.6·2 + 0.4·12 =
+    // 6/s. Where the previous window's offsets are missing, or show a change beyond the model's
+    // range, the patch's 2/s stays.
+    let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
+    let solver = WindowSolver::new(&seq, &[0, 1, 2], &CrossTalk::paper()).unwrap();
+    let basis = MotionBasis::new(&solver, [0.0, 1.0 / 121.0, 2.0 / 121.0]).unwrap();
+    let since_s = 1.0 / 121.0;
+    let step = |weight: f32| Step {
+        basis: &basis,
+        gain2: gain2(&solver),
+        limit: 25.0 * 4.0,
+        min_amplitude: 4.0,
+        kind: StepKind::Refine,
+        last: true,
+        prior_u: 1e-9,
+        prior_k: 1e-9,
+        inv_noise2: 0.25,
+        inv_since: 1.0 / since_s,
+        max_velocity_change: 0.0,
+        shift_per_velocity_change: 0.0,
+        offset_brightness_weight: weight,
+    };
+    let w = 12;
+    let row = |patch_kappa: f32, before: &dyn Fn(f32) -> f32| {
+        let mut row = Row::varied(w);
+        for x in 0..w {
+            let coordinate_px = 53.0 * x as f32 + 7.0;
+            for slot in 0..3 {
+                row.phase[slot][x] =
+                    (basis.f_rad_per_px[slot] * coordinate_px).rem_euclid(std::f32::consts::TAU);
+                row.amp[slot][x] = 120.0;
+                row.offset[slot][x] = 90.0 + 5.0 * slot as f32;
+            }
+            let (uu, kk) = (1e6, 1e6);
+            let values = [uu, 0.0, kk, uu * 150.0, kk * patch_kappa, 10.0];
+            for (plane, value) in row.evidence.iter_mut().zip(values) {
+                plane[x] = value;
+            }
+            row.flags[x] = 0;
+            row.velocity[x] = 0.0;
+            row.brightness[x] = 0.0;
+            let lit = basis.lit_offsets([row.offset[0][x], row.offset[1][x], row.offset[2][x]]);
+            row.lit_sum[x] = before(lit[0] + lit[1] + lit[2]);
+        }
+        row
+    };
+    let run = |weight: f32, mut row: Row| {
+        correct_row(&step(weight), row.planes().block(0, w));
+        row
+    };
+    let measured = run(0.4, row(2.0, &|now| now * (1.0 - 12.0 * since_s)));
+    let mixed = run(0.0, row(6.0, &|now| now * (1.0 - 12.0 * since_s)));
+    let patch = run(0.0, row(2.0, &|_| f32::NAN));
+    for x in 0..w {
+        for slot in 0..3 {
+            let (a, b) = (measured.phase[slot][x], mixed.phase[slot][x]);
+            assert!(
+                (a - b).abs() < 1e-4,
+                "pixel {x}, slot {slot}: {a} against {b}"
+            );
+        }
+        // Not vacuous: 6/s and 2/s correct the phases differently.
+        let moved = (0..3).any(|slot| (mixed.phase[slot][x] - patch.phase[slot][x]).abs() > 1e-3);
+        assert!(moved, "pixel {x}");
+        assert_eq!(measured.flags[x], mixed.flags[x], "pixel {x}");
+    }
+    // The change is reported where the pixel is valid.
+    let valid: Vec<usize> = (0..w).filter(|&x| measured.flags[x] == 0).collect();
+    assert!(!valid.is_empty());
+    for &x in &valid {
+        assert!((measured.brightness[x] - 6.0).abs() < 1e-3, "pixel {x}");
+    }
+    // Without the previous window's offsets, or with a change beyond the model's range, the
+    // patch's alone, to the bit.
+    for before in [
+        &(|_| f32::NAN) as &dyn Fn(f32) -> f32,
+        &|now| 3.0 * now,
+        &|_| 0.0,
+    ] {
+        let alone = run(0.4, row(2.0, before));
+        assert!(alone.bits() == patch.bits());
+    }
+}
