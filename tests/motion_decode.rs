@@ -360,7 +360,8 @@ fn assert_clinical_figures(tip: &FingertipTremor, case: &str) {
 fn the_unit_phasor_carried_along_the_fine_phase_keeps_more_of_a_swaying_hand() {
     // Off by default (docs/accuracy.md, Motion): the transported sum at 0.85 against the
     // default plain sum at 0.7, the same swaying hand and windows as above. Over these four
-    // windows: 96.5 % and 0.17 % against 90.2 % and 0.77 %.
+    // windows: 96.5 % and 0.17 % against 90.2 % and 0.77 %; since each moving pixel weighs its
+    // own brightness change (stop 52), 97.9 % and 0.06 % against 93.2 % and 0.48 %.
     // Both with one average for every pixel (without the moving pixels' own, which the next
     // test measures).
     let rig = rig(5.0, 4.0, 3.0);
@@ -372,10 +373,10 @@ fn the_unit_phasor_carried_along_the_fine_phase_keeps_more_of_a_swaying_hand() {
     let plain = evaluate_motion(&rig, one, 14, 3).unwrap();
     let carried = evaluate_motion(&rig, carried, 14, 3).unwrap();
     eprintln!("plain: {plain:?}\ncarried: {carried:?}");
-    assert!(plain.moving.coverage().unwrap() < 0.92);
     assert!(carried.moving.coverage().unwrap() >= 0.95);
     assert!(carried.moving.gross_rate().unwrap() <= 0.003);
-    assert!(plain.moving.gross_rate().unwrap() > 0.005);
+    assert!(plain.moving.coverage().unwrap() + 0.03 <= carried.moving.coverage().unwrap());
+    assert!(plain.moving.gross_rate().unwrap() > 2.0 * carried.moving.gross_rate().unwrap());
     // The still skin loses nothing.
     let (a, b) = (plain.still, carried.still);
     still_skin_loses_nothing(&a, &b);
@@ -389,6 +390,8 @@ fn the_moving_skin_takes_a_wider_average_where_the_narrow_one_is_unsure() {
     // the wide average taken at every moving pixel, without the check that refuses a pixel
     // where the narrow one is sure of other fringe orders, 96.7 % and 0.20 % here, but the
     // 10 mm fingertip's first window came out a fringe period off (the clinical test above).
+    // Since each moving pixel weighs its own brightness change (stop 52): 98.0 % and 0.13 %
+    // against 93.2 % and 0.48 %.
     let rig = rig(5.0, 4.0, 3.0);
     let mut one = DecodeParams::default();
     one.motion.moving_unit_decay = None;
@@ -397,8 +400,8 @@ fn the_moving_skin_takes_a_wider_average_where_the_narrow_one_is_unsure() {
     eprintln!("one average: {one:?}\nthe moving pixels' own: {two:?}");
     assert!(two.moving.coverage().unwrap() >= 0.945);
     assert!(two.moving.gross_rate().unwrap() <= 0.003);
-    assert!(one.moving.coverage().unwrap() < 0.92);
-    assert!(one.moving.gross_rate().unwrap() > 0.005);
+    assert!(one.moving.coverage().unwrap() + 0.03 <= two.moving.coverage().unwrap());
+    assert!(one.moving.gross_rate().unwrap() > 2.0 * two.moving.gross_rate().unwrap());
     // Still skin (of the swaying hand: it moves sideways) loses nothing.
     let (a, b) = (one.still, two.still);
     still_skin_loses_nothing(&a, &b);
