@@ -10,7 +10,8 @@
 //! Settings from the environment, for trying the decoder's parameters: `UNIT_DECAY` (the unit
 //! phasor's filter), `TRANSPORT=1` (carry it along the fine phase), `MIN_SUPPORT`,
 //! `MOTION_DECAY`, `MOVING_DECAY` (the moving pixels' wider average of the unit phasor,
-//! `MotionParams::moving_unit_decay`; 0 turns it off), `ITERATIONS`, `MOTION_BLOCK` (the motion model's evidence summed over blocks
+//! `MotionParams::moving_unit_decay`; 0 turns it off), `OFFSET_BRIGHTNESS`
+//! (`MotionParams::offset_brightness_weight`), `ITERATIONS`, `MOTION_BLOCK` (the motion model's evidence summed over blocks
 //! of that many pixels square), `REACH` (the sums' reach scale, `DecodeParams::reach_scale`;
 //! the decays are stated at 640 px wide), `EDGE_PHASE`, `EDGE_COLOUR` and `EDGE_CHROMA` (the
 //! edge-aware filters' links, `SmoothingParams`), `MOTION_OFF=1` (the paper's still window),
@@ -18,6 +19,9 @@
 //! parts of `sway`, 4 mm and 3° by default), `TEXTURE` (the skin's texture contrast), `PSF`
 //! (the lens's σ, px) and `SUBSURFACE` (the skin's blur of the pattern, projector px).
 //! The median time of the motion model's stage over the decoded windows goes to stderr.
+//! `FROZEN=1` also decodes each compared window with the hand held still at its centre frame's
+//! pose (the same patterns and noise draws) and prints that decode's figures over the same
+//! pixels: the floor the pixels' noise sets.
 //! `STILL=1` also prints, per window, the share of every lit pixel refused for each flag.
 //! `BY_OUTLINE=1` tallies by the distance to the nearest pixel that is not skin in one of the
 //! window's frames instead of by turn, and `ALL_SKIN=1` counts the still skin too. The
@@ -142,6 +146,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let all_skin = std::env::var("ALL_SKIN").is_ok();
     let mut refused_windows = 0usize;
     let mut motion_ms: Vec<f64> = Vec::new();
+    let frozen = std::env::var("FROZEN").is_ok();
+    let mut frozen_cloud = PointCloud::default();
+    let mut frozen_frame = rig.blank_frame();
+    let mut frozen_stats = Frozen::default();
     for i in 0..frames {
         truths.rotate_left(1);
         rig.render(i, &mut frame, Some(&mut truths[2]))?;
@@ -159,6 +167,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             continue;
         }
         triangulator.triangulate(out, &mut cloud)?;
+        if frozen {
+            // The same window with the hand held at its centre frame's pose: the same patterns
+            // and noise draws, only the motion gone (a decoder of its own, without a past).
+            let mut still_decoder =
+                SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params)?;
+            let centre_s = rig.frame_time_s(i - 1);
+            for k in i - 2..=i {
+                rig.render_pattern(k, rig.pattern_index(k), centre_s, &mut frozen_frame, None)?;
+                frozen_frame.time_s = rig.frame_time_s(k);
+                if let WindowOutcome::Decoded(o) = still_decoder.push(&frozen_frame)? {
+                    triangulator.triangulate(o, &mut frozen_cloud)?;
+                }
+            }
+        }
         if std::env::var("STILL").is_ok() {
             // Every lit pixel of the centre frame, whatever it shows: the flags of the refused.
             let mut lit = 0usize;
@@ -218,6 +240,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     bin.coarse_off += 1;
                 }
                 let z = cloud.point_in_camera_mm[p][2];
+                if frozen {
+                    frozen_stats.add(z, frozen_cloud.point_in_camera_mm[p][2], d[1]);
+                }
                 if z.is_finite() {
                     bin.valid += 1;
                     if (z - d[1]).abs() > GROSS_MM {
@@ -256,6 +281,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "{amplitude_mm} mm{}, {frames} frames, {total} moving px, {refused_windows} windows refused (decode::broken)",
         if sway { " with sway" } else { "" }
     );
+    if frozen {
+        frozen_stats.print();
+    }
     let label = if by_outline {
         "px from outline"
     } else {
@@ -299,6 +327,54 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!();
     }
     Ok(())
+}
+
+/// The moving decode beside the same window decoded with the hand held still at its centre
+/// frame's pose (`FROZEN=1`), over the counted pixels: what the pixels' noise alone leaves.
+#[derive(Default)]
+struct Frozen {
+    counted: usize,
+    kept: usize,
+    gross: usize,
+    sum2_mm2: f64,
+    /// Pixels kept within the gross limit by both decodes, and their squared errors in each.
+    both: usize,
+    both_moving_sum2_mm2: f64,
+    both_held_sum2_mm2: f64,
+}
+
+impl Frozen {
+    fn add(&mut self, moving_mm: f32, held_mm: f32, truth_mm: f32) {
+        self.counted += 1;
+        if !held_mm.is_finite() {
+            return;
+        }
+        self.kept += 1;
+        let held = f64::from(held_mm - truth_mm);
+        let moving = f64::from(moving_mm - truth_mm);
+        if held.abs() > f64::from(GROSS_MM) {
+            self.gross += 1;
+            return;
+        }
+        self.sum2_mm2 += held * held;
+        if moving_mm.is_finite() && moving.abs() <= f64::from(GROSS_MM) {
+            self.both += 1;
+            self.both_moving_sum2_mm2 += moving * moving;
+            self.both_held_sum2_mm2 += held * held;
+        }
+    }
+
+    fn print(&self) {
+        println!(
+            "held still at the centre pose: kept {} %, gross {} % of kept, RMS {} mm; kept by both ({} px): moving RMS {} mm, held still RMS {} mm",
+            share(self.kept, self.counted, 2),
+            share(self.gross, self.kept, 3),
+            rms(self.sum2_mm2, self.kept - self.gross),
+            self.both,
+            rms(self.both_moving_sum2_mm2, self.both),
+            rms(self.both_held_sum2_mm2, self.both),
+        );
+    }
 }
 
 /// The Chebyshev distance from pixel `(x, y)` to the nearest pixel that is not skin in one of

@@ -175,12 +175,31 @@ fn correct_row_as<const REFINE: bool, const LAST: bool>(step: &Step<'_>, mut row
     if m > 0 {
         run_gathered(step, &mut gathered, m, &mut row);
     }
+    if LAST {
+        write_lit_sums(step.basis, &mut row);
+    }
+}
+
+/// Each pixel's sum of its lit offsets in this window, the offsets as the last step left them
+/// (without the fringe the motion leaked into them), for the next window's brightness change
+/// ([`super::motion_moving`]). A loop of its own after the row's passes, which read the
+/// previous window's sums: written inside the first pass, it kept that pass from vectorising
+/// (the motion model's stage took 7.4 → 14 ms on the rig's default hand).
+#[inline(always)]
+fn write_lit_sums(basis: &MotionBasis, row: &mut RowPlanes<'_>) {
+    let n = row.lit_sum.len();
+    let [o0, o1, o2] = &row.offset;
+    let (o0, o1, o2) = (&o0[..n], &o1[..n], &o2[..n]);
+    for (x, sum) in row.lit_sum.iter_mut().enumerate() {
+        let lit = basis.lit_offsets([o0[x], o1[x], o2[x]]);
+        *sum = lit[0] + lit[1] + lit[2];
+    }
 }
 
 /// The second pass over the first `m` gathered pixels, copied back to their places in `row`.
 #[inline(always)]
 fn run_gathered(step: &Step<'_>, gathered: &mut Gathered, m: usize, row: &mut RowPlanes<'_>) {
-    correct_gathered(step, gathered);
+    correct_gathered(step, gathered, m);
     let index = gathered.index;
     let planes = gathered.planes();
     for (j, &x) in index[..m].iter().enumerate() {
@@ -250,7 +269,7 @@ pub(super) fn patch_step<const REFINE: bool>(
 /// `v.clamp(-limit, limit)` (NaN stays NaN) without `clamp`'s check of its bounds, which
 /// kept the loop from vectorising.
 #[inline(always)]
-fn clamp(v: f32, limit: f32) -> f32 {
+pub(super) fn clamp(v: f32, limit: f32) -> f32 {
     let v = if v < -limit { -limit } else { v };
     if v > limit {
         limit
@@ -319,9 +338,6 @@ fn still_pass<const REFINE: bool, const LAST: bool>(
         row.velocity[x] = keep_if(0.0, row.velocity[x]);
         row.brightness[x] = keep_if(0.0, row.brightness[x]);
         if LAST {
-            let offsets = [row.offset[0][x], row.offset[1][x], row.offset[2][x]];
-            let lit = basis.lit_offsets(offsets);
-            row.lit_sum[x] = keep_if(lit[0] + lit[1] + lit[2], row.lit_sum[x]);
             let min_amp = cheb.amplitude[0]
                 .min(cheb.amplitude[1])
                 .min(cheb.amplitude[2]);

@@ -15,7 +15,7 @@ use super::fastmath::{sin_cos_phase, sin_cos_small, whole_to_flags};
 use super::invalid;
 use super::motion::{StepKind, MIN_DET};
 use super::motion_basis::{apply, MotionBasis, MAX_TURN_RAD};
-use super::motion_correct::{bit, patch_step, PatchStep, RowPlanes, Step, BLOCK};
+use super::motion_correct::{bit, clamp, patch_step, PatchStep, RowPlanes, Step, BLOCK};
 use super::motion_evidence::{chebyshev3, disagrees, evidence_with, inconsistent};
 
 /// Marked pixels of a row, gathered into arrays, so that the full model runs over them in one
@@ -114,12 +114,12 @@ pub(super) fn copy_pixel(from: &RowPlanes<'_>, i: usize, to: &mut RowPlanes<'_>,
     "x86_64+avx2+fma",
     "x86_64+sse4.1"
 ))]
-pub(super) fn correct_gathered(step: &Step<'_>, gathered: &mut Gathered) {
+pub(super) fn correct_gathered(step: &Step<'_>, gathered: &mut Gathered, filled: usize) {
     match (step.kind == StepKind::Refine, step.last) {
-        (false, false) => correct_gathered_as::<false, false>(step, gathered),
-        (false, true) => correct_gathered_as::<false, true>(step, gathered),
-        (true, false) => correct_gathered_as::<true, false>(step, gathered),
-        (true, true) => correct_gathered_as::<true, true>(step, gathered),
+        (false, false) => correct_gathered_as::<false, false>(step, gathered, filled),
+        (false, true) => correct_gathered_as::<false, true>(step, gathered, filled),
+        (true, false) => correct_gathered_as::<true, false>(step, gathered, filled),
+        (true, true) => correct_gathered_as::<true, true>(step, gathered, filled),
     }
 }
 
@@ -134,12 +134,20 @@ pub(super) fn correct_gathered(step: &Step<'_>, gathered: &mut Gathered) {
 fn correct_gathered_as<const REFINE: bool, const LAST: bool>(
     step: &Step<'_>,
     gathered: &mut Gathered,
+    filled: usize,
 ) {
     let mut corrected = Corrected::default();
     {
         let planes = gathered.planes();
+        // Over the filled entries only (on a scene that hardly moves a run holds a few).
+        let mut measured = [f32::NAN; BLOCK];
+        if REFINE && step.offset_brightness_weight > 0.0 {
+            for (j, rate) in measured.iter_mut().enumerate().take(filled.min(BLOCK)) {
+                *rate = brightness_from_offsets(step, &planes, j);
+            }
+        }
         for j in 0..BLOCK {
-            correct_slots::<REFINE>(step, &planes, j, &mut corrected);
+            correct_slots::<REFINE>(step, &planes, j, measured[j], &mut corrected);
         }
     }
     let mut planes = gathered.planes();
@@ -217,6 +225,7 @@ fn correct_slots<const REFINE: bool>(
     step: &Step<'_>,
     row: &RowPlanes<'_>,
     x: usize,
+    measured_kappa: f32,
     out: &mut Corrected,
 ) {
     let basis = step.basis;
@@ -238,14 +247,9 @@ fn correct_slots<const REFINE: bool>(
     let lit = basis.lit_offsets(offsets);
     // Undo the previous correction, if any; correct only where the patch moves.
     let corrected_before = REFINE & ((u0 != 0.0) | (k0 != 0.0));
-    let kappa = if REFINE {
-        let measured = brightness_from_offsets(step, row, x, (corrected_before, u0, k0));
+    let kappa = if REFINE && !measured_kappa.is_nan() {
         let w = step.offset_brightness_weight;
-        if measured.is_nan() {
-            kappa
-        } else {
-            (1.0 - w) * kappa + w * measured
-        }
+        (1.0 - w) * kappa + w * measured_kappa
     } else {
         kappa
     };
@@ -292,26 +296,33 @@ fn correct_slots<const REFINE: bool>(
 /// correction `(u0, κ0)` says motion leaked into them; NaN where the step takes none (a weight
 /// of 0), a sum is not positive, or the change is beyond the model's range (at an outline the
 /// pixel may have seen another surface then).
+///
+/// Written out without loops, closures over arrays or `f32::clamp`, so that its loop
+/// vectorises: with [`leak_of_slot`] and [`MotionBasis::lit_offsets`] it ran scalar, and the
+/// gathered pass took six times as long.
 #[inline(always)]
-fn brightness_from_offsets(
-    step: &Step<'_>,
-    row: &RowPlanes<'_>,
-    x: usize,
-    previous: (bool, f32, f32),
-) -> f32 {
+fn brightness_from_offsets(step: &Step<'_>, row: &RowPlanes<'_>, x: usize) -> f32 {
     let basis = step.basis;
-    let phasor = |slot: usize| {
-        let (s, c) = sin_cos_phase(row.phase[slot][x]);
-        (row.amp[slot][x] * c, row.amp[slot][x] * s)
+    let (u0, k0) = (row.velocity[x], row.brightness[x]);
+    let corrected_before = (u0 != 0.0) | (k0 != 0.0);
+    let leak0 = leak_at(basis, 0, (u0, k0), (row.phase[0][x], row.amp[0][x]));
+    let leak1 = leak_at(basis, 1, (u0, k0), (row.phase[1][x], row.amp[1][x]));
+    let leak2 = leak_at(basis, 2, (u0, k0), (row.phase[2][x], row.amp[2][x]));
+    let (leak0, leak1, leak2) = if corrected_before {
+        (leak0, leak1, leak2)
+    } else {
+        (0.0, 0.0, 0.0)
     };
-    let leak = [
-        leak_of_slot(basis, 0, previous, phasor(0)),
-        leak_of_slot(basis, 1, previous, phasor(1)),
-        leak_of_slot(basis, 2, previous, phasor(2)),
-    ];
-    let offsets = [0, 1, 2].map(|c| row.offset[c][x] - dot3(basis.mix_of_slot_row(c), leak));
-    let lit = basis.lit_offsets(offsets);
-    let now = lit[0] + lit[1] + lit[2];
+    // Each camera channel's offset without the leaked fringe, less the cross-talk bias; the
+    // lit offsets' sum is Σ_c (Σ_s unmix[s][c])·that.
+    let (mix, unmix, bias) = (&basis.mix_of_slot, &basis.unmix_of_slot, &basis.bias_gray);
+    let channel = |c: usize| {
+        row.offset[c][x] - (mix[0][c] * leak0 + mix[1][c] * leak1 + mix[2][c] * leak2) - bias[c]
+    };
+    let (c0, c1, c2) = (channel(0), channel(1), channel(2));
+    let now = (unmix[0][0] + unmix[1][0] + unmix[2][0]) * c0
+        + (unmix[0][1] + unmix[1][1] + unmix[2][1]) * c1
+        + (unmix[0][2] + unmix[1][2] + unmix[2][2]) * c2;
     let before = row.lit_sum[x];
     let rate = (now - before) * step.inv_since / now;
     let taken = (step.offset_brightness_weight > 0.0)
@@ -324,6 +335,28 @@ fn brightness_from_offsets(
     } else {
         f32::NAN
     }
+}
+
+/// [`leak_of_slot`] of slot `slot` at `(u, κ)` for the phasor of `(phase, amp)`, its three
+/// frames written out.
+#[inline(always)]
+fn leak_at(
+    basis: &MotionBasis,
+    slot: usize,
+    (u, kappa): (f32, f32),
+    (phase, amp): (f32, f32),
+) -> f32 {
+    let (s, c) = sin_cos_phase(phase);
+    let z = (amp * c, amp * s);
+    let g = basis.f_rad_per_px[slot] * u;
+    let frame = |k: usize| {
+        let tau = basis.tau_s[k];
+        let (sn, cs) = sin_cos_small(clamp(g * tau, MAX_TURN_RAD));
+        let (dx, dy) = basis.d[k];
+        let turned = (dx * cs + dy * sn, -dx * sn + dy * cs);
+        basis.offset_row[k] * ((1.0 + kappa * tau) * dot2(turned, z) - dot2(basis.d[k], z))
+    };
+    frame(0) + frame(1) + frame(2)
 }
 
 /// The second half, for the same pixel: write the next step's evidence or (on the last step)
@@ -398,8 +431,7 @@ fn finish_pixel<const LAST: bool>(
     for slot in 0..3 {
         row.offset[slot][x] = offsets[slot] - dot3(basis.mix_of_slot_row(slot), leak);
     }
-    let lit_now = basis.lit_offsets([row.offset[0][x], row.offset[1][x], row.offset[2][x]]);
-    row.lit_sum[x] = lit_now[0] + lit_now[1] + lit_now[2];
+
     let min_amp = cheb.amplitude[0]
         .min(cheb.amplitude[1])
         .min(cheb.amplitude[2]);
