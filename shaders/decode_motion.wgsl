@@ -405,6 +405,16 @@ fn correct_slot(refine: bool, f: f32, phase: f32, amp: f32, lit: f32, corrected_
     );
 }
 
+// The sum of the slots' lit offsets, Σ_c (Σ_s unmix[s][c])·(o_c − bias_c), in the CPU's order.
+fn lit_sum(offsets: vec3<f32>) -> f32 {
+    var w = vec3<f32>(0.0);
+    for (var c = 0u; c < 3u; c++) {
+        w[c] = M[M_UNMIX + c] + M[M_UNMIX + 3u + c] + M[M_UNMIX + 6u + c];
+    }
+    let lit = offsets - vec3<f32>(M[M_BIAS], M[M_BIAS + 1u], M[M_BIAS + 2u]);
+    return w.x * lit.x + w.y * lit.y + w.z * lit.z;
+}
+
 // The pixel's brightness change from its lit offsets in the previous window and this one, this
 // window's without the fringe the previous step's correction leaked into them; x: the rate,
 // y: 1 where it is taken (src/decode/motion_moving.rs, brightness_from_offsets).
@@ -420,8 +430,7 @@ fn brightness_from_offsets(i: u32, phases: vec3<f32>, amps: vec3<f32>, offsets: 
         let mix = vec3<f32>(M[M_MIX + j], M[M_MIX + 3u + j], M[M_MIX + 6u + j]);
         now_offsets[j] = offsets[j] - dot(mix, leak);
     }
-    let lit = lit_offsets(now_offsets);
-    let now = lit.x + lit.y + lit.z;
+    let now = lit_sum(now_offsets);
     let before = state[LIT_SUM * P.n + i];
     let rate = (now - before) * M[M_INV_SINCE] / now;
     let taken = (M[M_OFFSET_WEIGHT] > 0.0) && (M[M_INV_SINCE] > 0.0) && (before > 0.0)
@@ -516,7 +525,7 @@ fn motion_step(id: vec3<u32>, refine: bool, last: bool) {
         state[VELOCITY * n + i] = 0.0;
         state[BRIGHTNESS * n + i] = 0.0;
         if (last) {
-            state[LIT_SUM * n + i] = lit.x + lit.y + lit.z;
+            state[LIT_SUM * n + i] = lit_sum(offsets);
             write_unit(i, c, reason_bits(c, bits[FLAGS * n + i]));
         } else {
             let keep = select(0.0, 1.0, bits[FLAGS * n + i] == 0u);
@@ -597,8 +606,7 @@ fn motion_step(id: vec3<u32>, refine: bool, last: bool) {
         let mix = vec3<f32>(M[M_MIX + j], M[M_MIX + 3u + j], M[M_MIX + 6u + j]);
         solved[(COLOUR + j) * n + i] = offsets[j] - dot(mix, leak);
     }
-    let lit_now = lit_offsets(vec3<f32>(solved[COLOUR * n + i], solved[(COLOUR + 1u) * n + i], solved[(COLOUR + 2u) * n + i]));
-    state[LIT_SUM * n + i] = lit_now.x + lit_now.y + lit_now.z;
+    state[LIT_SUM * n + i] = lit_sum(vec3<f32>(solved[COLOUR * n + i], solved[(COLOUR + 1u) * n + i], solved[(COLOUR + 2u) * n + i]));
     var reason = reason_bits(c, bits[FLAGS * n + i]);
     if (!within || (worst_det < M[M_MIN_DET])) {
         reason |= MOTION;

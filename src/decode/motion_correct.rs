@@ -187,12 +187,16 @@ fn correct_row_as<const REFINE: bool, const LAST: bool>(step: &Step<'_>, mut row
 /// (the motion model's stage took 7.4 → 14 ms on the rig's default hand).
 #[inline(always)]
 fn write_lit_sums(basis: &MotionBasis, row: &mut RowPlanes<'_>) {
+    // Σ_s lit_s = Σ_c (Σ_s unmix[s][c])·(o_c − bias_c), as `motion_moving` sums this window's.
+    let (unmix, bias) = (&basis.unmix_of_slot, &basis.bias_gray);
+    let column = |c: usize| unmix[0][c] + unmix[1][c] + unmix[2][c];
+    let (w0, w1, w2) = (column(0), column(1), column(2));
+    let (b0, b1, b2) = (bias[0], bias[1], bias[2]);
     let n = row.lit_sum.len();
     let [o0, o1, o2] = &row.offset;
     let (o0, o1, o2) = (&o0[..n], &o1[..n], &o2[..n]);
     for (x, sum) in row.lit_sum.iter_mut().enumerate() {
-        let lit = basis.lit_offsets([o0[x], o1[x], o2[x]]);
-        *sum = lit[0] + lit[1] + lit[2];
+        *sum = w0 * (o0[x] - b0) + w1 * (o1[x] - b1) + w2 * (o2[x] - b2);
     }
 }
 
