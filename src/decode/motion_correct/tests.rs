@@ -105,6 +105,24 @@ impl Row {
         row
     }
 
+    /// Pixel `x` seen still at `coordinate_px` (its phases consistent: no Chebyshev residual),
+    /// with fringe amplitude `amp` and offsets `offsets`.
+    fn set_still(
+        &mut self,
+        basis: &MotionBasis,
+        x: usize,
+        coordinate_px: f32,
+        amp: f32,
+        offsets: [f32; 3],
+    ) {
+        for slot in 0..3 {
+            self.phase[slot][x] =
+                (basis.f_rad_per_px[slot] * coordinate_px).rem_euclid(std::f32::consts::TAU);
+            self.amp[slot][x] = amp;
+            self.offset[slot][x] = offsets[slot];
+        }
+    }
+
     /// Every plane, whole; `RowPlanes::block` cuts the pixels a call works on.
     fn planes(&mut self) -> RowPlanes<'_> {
         let [p0, p1, p2] = &mut self.phase;
@@ -209,19 +227,12 @@ fn a_row_corrects_each_pixel_as_it_would_alone() {
     }
 }
 
-#[test]
-fn a_second_step_that_breaks_a_consistent_correction_keeps_the_first() {
-    // Pixels the first step corrected at 150 px/s, their phasors now consistent (the
-    // Chebyshev residual 0), whose patch's evidence then points far away (−450 px/s) or
-    // near (180 px/s). Far: where the new correction would break the Chebyshev relation
-    // (at most of these coordinates), the pixel keeps 150 px/s and stays valid. Near: the
-    // step applies.
-    let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
-    let solver = WindowSolver::new(&seq, &[0, 1, 2], &CrossTalk::paper()).unwrap();
-    let basis = MotionBasis::new(&solver, [0.0, 1.0 / 121.0, 2.0 / 121.0]).unwrap();
-    let step = Step {
-        basis: &basis,
-        gain2: gain2(&solver),
+/// The last, refining step of the paper's sequence at the rig's default noise, with no window
+/// before it.
+fn last_refining_step<'a>(basis: &'a MotionBasis, solver: &WindowSolver) -> Step<'a> {
+    Step {
+        basis,
+        gain2: gain2(solver),
         limit: 25.0 * 4.0,
         min_amplitude: 4.0,
         kind: StepKind::Refine,
@@ -233,17 +244,24 @@ fn a_second_step_that_breaks_a_consistent_correction_keeps_the_first() {
         max_velocity_change: 0.0,
         shift_per_velocity_change: 0.0,
         offset_brightness_weight: 0.0,
-    };
+    }
+}
+
+#[test]
+fn a_second_step_that_breaks_a_consistent_correction_keeps_the_first() {
+    // Pixels the first step corrected at 150 px/s, their phasors now consistent (the
+    // Chebyshev residual 0), whose patch's evidence then points far away (−450 px/s) or
+    // near (180 px/s). Far: where the new correction would break the Chebyshev relation
+    // (at most of these coordinates), the pixel keeps 150 px/s and stays valid. Near: the
+    // step applies.
+    let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
+    let solver = WindowSolver::new(&seq, &[0, 1, 2], &CrossTalk::paper()).unwrap();
+    let basis = MotionBasis::new(&solver, [0.0, 1.0 / 121.0, 2.0 / 121.0]).unwrap();
+    let step = last_refining_step(&basis, &solver);
     let w = 16;
     let mut row = Row::varied(w);
     for x in 0..w {
-        let coordinate_px = 37.0 * x as f32 + 11.0;
-        for slot in 0..3 {
-            row.phase[slot][x] =
-                (basis.f_rad_per_px[slot] * coordinate_px).rem_euclid(std::f32::consts::TAU);
-            row.amp[slot][x] = 150.0;
-            row.offset[slot][x] = 80.0;
-        }
+        row.set_still(&basis, x, 37.0 * x as f32 + 11.0, 150.0, [80.0; 3]);
         let target_px_per_s = if x % 2 == 0 { -450.0 } else { 180.0 };
         let (uu, kk) = (0.1, 0.02);
         let values = [uu, 0.0, kk, uu * target_px_per_s, 0.0, 10.0];
@@ -287,31 +305,17 @@ fn a_moving_pixel_weighs_its_own_brightness_change_with_its_patch() {
     let basis = MotionBasis::new(&solver, [0.0, 1.0 / 121.0, 2.0 / 121.0]).unwrap();
     let since_s = 1.0 / 121.0;
     let step = |weight: f32| Step {
-        basis: &basis,
-        gain2: gain2(&solver),
-        limit: 25.0 * 4.0,
-        min_amplitude: 4.0,
-        kind: StepKind::Refine,
-        last: true,
         prior_u: 1e-9,
         prior_k: 1e-9,
-        inv_noise2: 0.25,
         inv_since: 1.0 / since_s,
-        max_velocity_change: 0.0,
-        shift_per_velocity_change: 0.0,
         offset_brightness_weight: weight,
+        ..last_refining_step(&basis, &solver)
     };
     let w = 12;
     let row = |patch_kappa: f32, before: &dyn Fn(f32) -> f32| {
         let mut row = Row::varied(w);
         for x in 0..w {
-            let coordinate_px = 53.0 * x as f32 + 7.0;
-            for slot in 0..3 {
-                row.phase[slot][x] =
-                    (basis.f_rad_per_px[slot] * coordinate_px).rem_euclid(std::f32::consts::TAU);
-                row.amp[slot][x] = 120.0;
-                row.offset[slot][x] = 90.0 + 5.0 * slot as f32;
-            }
+            row.set_still(&basis, x, 53.0 * x as f32 + 7.0, 120.0, [90.0, 95.0, 100.0]);
             let (uu, kk) = (1e6, 1e6);
             let values = [uu, 0.0, kk, uu * 150.0, kk * patch_kappa, 10.0];
             for (plane, value) in row.evidence.iter_mut().zip(values) {
