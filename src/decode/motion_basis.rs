@@ -485,6 +485,57 @@ mod tests {
         assert!(predicted.abs() > 1e-4, "{predicted}");
     }
 
+    /// [`still_solve`] of a pixel whose light also scales by `1 + κ·τ` (its offset, 40, and
+    /// its fringe alike).
+    fn still_solve_brightening(
+        solver: &WindowSolver,
+        z: (f32, f32),
+        kappa: f32,
+        times: [f64; 3],
+    ) -> (f32, f32) {
+        let f = solver.factored.as_ref().unwrap();
+        let centre = times.iter().sum::<f64>() / 3.0;
+        let (mut u, mut v) = (0.0, 0.0);
+        for k in 0..3 {
+            let tau = (times[k] - centre) as f32;
+            let fringe = f.shift_rad[k].cos() * z.0 - f.shift_rad[k].sin() * z.1;
+            let sample = (40.0 + fringe) * (1.0 + kappa * tau);
+            u += f.closed_form[1][k] * sample;
+            v += f.closed_form[2][k] * sample;
+        }
+        (u, v)
+    }
+
+    #[test]
+    fn the_residual_slope_predicts_the_chebyshev_residual_of_a_slow_brightness_change() {
+        // The brightness term's scale (`N(0)·z + ō·v`) against samples that brighten: a
+        // mis-scaled term would take a patch's κ too small or too large everywhere.
+        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
+        let solver = WindowSolver::new(&seq, &[1, 2, 0], &CrossTalk::paper()).unwrap();
+        let times = [0.0, 1.0 / 121.0, 2.0 / 121.0];
+        let basis = MotionBasis::new(&solver, times).unwrap();
+        let f = basis.f_rad_per_px;
+        let kappa = 0.5f32; // 1/s, slow: first order holds
+        let mut worst = 0f32;
+        let mut largest = 0f32;
+        for x0 in [37.1f32, 211.9, 437.3, 688.4] {
+            let z0: [(f32, f32); 3] = std::array::from_fn(|s| {
+                let phase = f[s] * x0;
+                (30.0 * phase.cos(), 30.0 * phase.sin())
+            });
+            let z: [(f32, f32); 3] =
+                std::array::from_fn(|s| still_solve_brightening(&solver, z0[s], kappa, times));
+            let c = chebyshev3(z, gain2(&solver));
+            let e = c.t.1.atan2(c.t.0);
+            let slopes = MotionBasis::residual_slopes(z, basis.slopes_at_rest(z, [40.0; 3]));
+            let predicted = slopes.1 * kappa;
+            worst = worst.max((e - predicted).abs() / predicted.abs().max(1e-6));
+            largest = largest.max(predicted.abs());
+        }
+        assert!(largest > 1e-4, "{largest}");
+        assert!(worst < 0.05, "relative error {worst}");
+    }
+
     #[test]
     fn a_still_pixels_evidence_carries_no_bias_from_its_own_noise() {
         // Still phasors with independent isotropic noise of each slot's gain (the model
