@@ -431,7 +431,6 @@ fn finish_pixel<const LAST: bool>(
     for slot in 0..3 {
         row.offset[slot][x] = offsets[slot] - dot3(basis.mix_of_slot_row(slot), leak);
     }
-
     let min_amp = cheb.amplitude[0]
         .min(cheb.amplitude[1])
         .min(cheb.amplitude[2]);
