@@ -415,16 +415,29 @@ mod tests {
     /// A channel's three samples of a phasor turning at `g` rad/s, through the still closed
     /// form: what stage 1 returns.
     fn still_solve(solver: &WindowSolver, z: (f32, f32), g: f32, times: [f64; 3]) -> (f32, f32) {
+        still_solve_brightening(solver, z, (g, 0.0), times)
+    }
+
+    /// [`still_solve`] of a pixel whose light also scales by `1 + κ·τ` (its offset, 40, and its
+    /// fringe alike), at `(g, κ)`.
+    fn still_solve_brightening(
+        solver: &WindowSolver,
+        z: (f32, f32),
+        (g, kappa): (f32, f32),
+        times: [f64; 3],
+    ) -> (f32, f32) {
         let f = solver.factored.as_ref().unwrap();
         let centre = times.iter().sum::<f64>() / 3.0;
         let (mut u, mut v) = (0.0, 0.0);
         for k in 0..3 {
-            let turn = g * (times[k] - centre) as f32;
+            let tau = (times[k] - centre) as f32;
+            let turn = g * tau;
             let (x, y) = (
                 z.0 * turn.cos() - z.1 * turn.sin(),
                 z.0 * turn.sin() + z.1 * turn.cos(),
             );
-            let sample = 40.0 + f.shift_rad[k].cos() * x - f.shift_rad[k].sin() * y;
+            let sample =
+                (40.0 + f.shift_rad[k].cos() * x - f.shift_rad[k].sin() * y) * (1.0 + kappa * tau);
             u += f.closed_form[1][k] * sample;
             v += f.closed_form[2][k] * sample;
         }
@@ -485,27 +498,6 @@ mod tests {
         assert!(predicted.abs() > 1e-4, "{predicted}");
     }
 
-    /// [`still_solve`] of a pixel whose light also scales by `1 + κ·τ` (its offset, 40, and
-    /// its fringe alike).
-    fn still_solve_brightening(
-        solver: &WindowSolver,
-        z: (f32, f32),
-        kappa: f32,
-        times: [f64; 3],
-    ) -> (f32, f32) {
-        let f = solver.factored.as_ref().unwrap();
-        let centre = times.iter().sum::<f64>() / 3.0;
-        let (mut u, mut v) = (0.0, 0.0);
-        for k in 0..3 {
-            let tau = (times[k] - centre) as f32;
-            let fringe = f.shift_rad[k].cos() * z.0 - f.shift_rad[k].sin() * z.1;
-            let sample = (40.0 + fringe) * (1.0 + kappa * tau);
-            u += f.closed_form[1][k] * sample;
-            v += f.closed_form[2][k] * sample;
-        }
-        (u, v)
-    }
-
     #[test]
     fn the_residual_slope_predicts_the_chebyshev_residual_of_a_slow_brightness_change() {
         // The brightness term's scale (`N(0)·z + ō·v`) against samples that brighten: a
@@ -523,8 +515,9 @@ mod tests {
                 let phase = f[s] * x0;
                 (30.0 * phase.cos(), 30.0 * phase.sin())
             });
-            let z: [(f32, f32); 3] =
-                std::array::from_fn(|s| still_solve_brightening(&solver, z0[s], kappa, times));
+            let z: [(f32, f32); 3] = std::array::from_fn(|s| {
+                still_solve_brightening(&solver, z0[s], (0.0, kappa), times)
+            });
             let c = chebyshev3(z, gain2(&solver));
             let e = c.t.1.atan2(c.t.0);
             let slopes = MotionBasis::residual_slopes(z, basis.slopes_at_rest(z, [40.0; 3]));
