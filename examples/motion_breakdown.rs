@@ -11,7 +11,8 @@
 //! phasor's filter), `TRANSPORT=1` (carry it along the fine phase), `MIN_SUPPORT`,
 //! `MOTION_DECAY`, `MOVING_DECAY` (the moving pixels' wider average of the unit phasor,
 //! `MotionParams::moving_unit_decay`; 0 turns it off), `OFFSET_BRIGHTNESS`
-//! (`MotionParams::offset_brightness_weight`), `ITERATIONS`, `MOTION_BLOCK` (the motion model's evidence summed over blocks
+//! (`MotionParams::offset_brightness_weight`), `ADVECTED=1`
+//! (`MotionParams::advected_brightness`), `ITERATIONS`, `MOTION_BLOCK` (the motion model's evidence summed over blocks
 //! of that many pixels square), `REACH` (the sums' reach scale, `DecodeParams::reach_scale`;
 //! the decays are stated at 640 px wide), `EDGE_PHASE`, `EDGE_COLOUR` and `EDGE_CHROMA` (the
 //! edge-aware filters' links, `SmoothingParams`), `MOTION_OFF=1` (the paper's still window),
@@ -58,6 +59,14 @@ struct Bin {
     /// (or missing): no rounding can give them the right order.
     coarse_off: usize,
     flags: [usize; 9],
+    /// With `FROZEN=1`: the held-still decode's squared error and count over the pixels both
+    /// decodes kept within the gross limit.
+    frozen_sum2_mm2: f64,
+    frozen_n: usize,
+    /// With `MODEL_ERRORS=1`: over the kept pixels, Σ model·truth, Σ truth² and Σ (model −
+    /// truth)² of the velocity (px/s) and of the brightness change (1/s).
+    u_sums: [f64; 3],
+    k_sums: [f64; 3],
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -81,6 +90,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             t.sway_amplitude_mm = env_f64("SWAY_MM").unwrap_or(4.0);
             t.roll_amplitude_deg = env_f64("ROLL_DEG").unwrap_or(3.0);
         }
+    }
+    if std::env::var("NO_NOISE").is_ok() {
+        config.noise = tremorscan::rig::NoiseModel::none();
     }
     if let Some(c) = env_f64("PSF") {
         config.camera_psf_sigma_px = c;
@@ -131,6 +143,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(v) = env("MOVING_DECAY") {
         params.motion.moving_unit_decay = (v > 0.0).then_some(v);
     }
+    if std::env::var("ADVECTED").is_ok() {
+        params.motion.advected_brightness = true;
+    }
     if let Some(v) = env("OFFSET_BRIGHTNESS") {
         params.motion.offset_brightness_weight = v;
     }
@@ -180,6 +195,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     triangulator.triangulate(o, &mut frozen_cloud)?;
                 }
             }
+        }
+        let model_errors = std::env::var("MODEL_ERRORS").is_ok();
+        let mut true_kappa = Vec::new();
+        if model_errors {
+            // The true brightness change of each pixel's lit light: the window's outer frames
+            // rendered under flat white light.
+            let mut flat = [rig.blank_frame(), rig.blank_frame(), rig.blank_frame()];
+            for (j, f) in flat.iter_mut().enumerate() {
+                let k = i - 2 + j as u64;
+                rig.render_flat(k, [255, 255, 255], rig.frame_time_s(k), f, None)?;
+            }
+            let dt = (rig.frame_time_s(i) - rig.frame_time_s(i - 2)) as f32;
+            let sum = |f: &tremorscan::frame::Frame, p: usize| -> f32 {
+                (0..3).map(|c| f32::from(f.data[3 * p + c])).sum()
+            };
+            true_kappa = (0..frame.width * frame.height)
+                .map(|p| (sum(&flat[2], p) - sum(&flat[0], p)) / (dt * sum(&flat[1], p)))
+                .collect();
         }
         if std::env::var("STILL").is_ok() {
             // Every lit pixel of the centre frame, whatever it shows: the flags of the refused.
@@ -241,7 +274,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
                 let z = cloud.point_in_camera_mm[p][2];
                 if frozen {
-                    frozen_stats.add(z, frozen_cloud.point_in_camera_mm[p][2], d[1]);
+                    let still_z = frozen_cloud.point_in_camera_mm[p][2];
+                    frozen_stats.add(z, still_z, d[1]);
+                    if (z - d[1]).abs() <= GROSS_MM && (still_z - d[1]).abs() <= GROSS_MM {
+                        bin.frozen_sum2_mm2 += f64::from(still_z - d[1]).powi(2);
+                        bin.frozen_n += 1;
+                    }
+                }
+                if z.is_finite() && model_errors {
+                    let dt = (rig.frame_time_s(i) - rig.frame_time_s(i - 2)) as f32;
+                    let u_true = (truths[2].coordinate_px[p] - truths[0].coordinate_px[p]) / dt;
+                    let pairs = [
+                        (&mut bin.u_sums, out.velocity_px_per_s[p], u_true),
+                        (&mut bin.k_sums, out.brightness_rate_per_s[p], true_kappa[p]),
+                    ];
+                    for (sums, model, truth) in pairs {
+                        if truth.is_finite() {
+                            sums[0] += f64::from(model * truth);
+                            sums[1] += f64::from(truth * truth);
+                            sums[2] += f64::from((model - truth).powi(2));
+                        }
+                    }
                 }
                 if z.is_finite() {
                     bin.valid += 1;
@@ -290,13 +343,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "turn rad"
     };
     print!("| {label} | share | kept | gross | RMS mm | coarse ≥ ½ |");
+    if frozen {
+        print!(" held still RMS mm |");
+    }
+    let model_errors = std::env::var("MODEL_ERRORS").is_ok();
+    if model_errors {
+        print!(" u slope | u RMS px/s | κ slope | κ RMS /s |");
+    }
     for (_, name) in FLAGS {
         print!(" {name} |");
     }
     println!();
     println!(
         "|---|---:|---:|---:|---:|---:|{}",
-        "---:|".repeat(FLAGS.len())
+        "---:|".repeat(FLAGS.len() + usize::from(frozen) + 4 * usize::from(model_errors))
     );
     for (k, b) in bins.iter().enumerate() {
         if b.counted == 0 {
@@ -321,6 +381,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             rms(b.sum2_mm2, b.valid - b.gross),
             share(b.coarse_off, b.counted, 1)
         );
+        if frozen {
+            print!(" {} |", rms(b.frozen_sum2_mm2, b.frozen_n));
+        }
+        if model_errors {
+            for sums in [b.u_sums, b.k_sums] {
+                print!(
+                    " {:.2} | {:.1} |",
+                    sums[0] / sums[1],
+                    (sums[2] / b.valid.max(1) as f64).sqrt()
+                );
+            }
+        }
         for v in b.flags {
             print!(" {} |", share(v, b.counted, 1));
         }

@@ -29,6 +29,7 @@ pub mod edges;
 pub mod fastmath;
 mod method;
 pub mod motion;
+mod motion_advect;
 mod motion_basis;
 pub use motion_basis::motion_basis;
 mod motion_blocks;
@@ -159,6 +160,12 @@ pub struct MotionParams {
     /// from its projector-lit offsets in the previous window and this one, on the last
     /// Gauss–Newton step (0: the patch's alone; `motion_moving`).
     pub offset_brightness_weight: f32,
+    /// On the last Gauss–Newton step, each patch also solves for the image velocity of its
+    /// light, and each moving pixel takes the brightness change it makes from the gradient of
+    /// its own lit image (`motion_advect`; opt-in: CPU only, the GPU decoder refuses it, and it
+    /// holds eleven more planes; measured in docs/accuracy.md, Motion, stop 53). Per-pixel sums
+    /// only: with [`Self::block_px`] above 1 it is not taken.
+    pub advected_brightness: bool,
 }
 
 impl MotionParams {
@@ -199,6 +206,7 @@ impl Default for MotionParams {
             // inverse variance are 0.55 and 0.35–0.41; 0.4 serves both (docs/accuracy.md,
             // Motion, stop 52: 0.3–0.7 measured).
             offset_brightness_weight: 0.4,
+            advected_brightness: false,
         }
     }
 }

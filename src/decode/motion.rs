@@ -104,6 +104,7 @@
 //! Only CPS-RGB windows (three frames, factored solve) take the model; other sequences decode
 //! as before.
 
+use super::motion_advect::{apply_advection, sum_advection};
 pub use super::motion_basis::{MotionBasis, MAX_TURN_RAD};
 use super::motion_blocks::step_in_blocks;
 use super::motion_correct::{correct_row, RowPlanes, Step};
@@ -130,7 +131,7 @@ pub(super) const MOTION_SIGNIFICANCE: f32 = 18.4;
 /// ends of the projector's range, where the Chebyshev residual cannot see motion) then stays
 /// near rest instead of fitting its noise.
 const PRIOR_VELOCITY_PX_PER_S: f32 = 400.0;
-const PRIOR_BRIGHTNESS_RATE_PER_S: f32 = 20.0;
+pub(super) const PRIOR_BRIGHTNESS_RATE_PER_S: f32 = 20.0;
 /// Smallest shift of the window's mean coordinate from its centre coordinate (`a·mean(τ²)/2`,
 /// projector px) from which the acceleration is applied in full (from half of it in part,
 /// [`acceleration_onset`]): below it the correction is within the noise of the coordinate, and a
@@ -204,6 +205,11 @@ pub(crate) fn motion_step(
         step_in_blocks(&step, decay, block, out);
         return;
     }
+    // The brightness change carried with the image (opt-in): its sums before the step's.
+    let advected = kind == StepKind::Refine && last && params.motion.advected_brightness;
+    if advected {
+        sum_advection(basis, out, decay);
+    }
     {
         smooth_planes(&mut Planes::of_unit_phasor(out), decay);
         let n = out.width * out.height;
@@ -220,6 +226,9 @@ pub(crate) fn motion_step(
             vertical_state: &mut out.vertical_state,
         };
         smooth_planes(&mut planes, decay);
+    }
+    if advected {
+        apply_advection(&step, out);
     }
     let w = out.width;
     let n = w * out.height;

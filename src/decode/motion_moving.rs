@@ -302,12 +302,42 @@ fn correct_slots<const REFINE: bool>(
 /// gathered pass took six times as long.
 #[inline(always)]
 fn brightness_from_offsets(step: &Step<'_>, row: &RowPlanes<'_>, x: usize) -> f32 {
-    let basis = step.basis;
-    let (u0, k0) = (row.velocity[x], row.brightness[x]);
+    let now = lit_sum_without_leak(
+        step.basis,
+        (row.velocity[x], row.brightness[x]),
+        [row.phase[0][x], row.phase[1][x], row.phase[2][x]],
+        [row.amp[0][x], row.amp[1][x], row.amp[2][x]],
+        [row.offset[0][x], row.offset[1][x], row.offset[2][x]],
+    );
+    let before = row.lit_sum[x];
+    let rate = (now - before) * step.inv_since / now;
+    let taken = (step.offset_brightness_weight > 0.0)
+        & (step.inv_since > 0.0)
+        & (before > 0.0)
+        & (now > 0.0)
+        & (rate.abs() <= step.basis.max_brightness_rate);
+    if taken {
+        rate
+    } else {
+        f32::NAN
+    }
+}
+
+/// The sum of a pixel's projector-lit offsets (`Σ_c (Σ_s unmix[s][c])·(o_c − bias_c)`) without
+/// the fringe that the previous step's correction `(u0, κ0)` says motion leaked into them (none
+/// where it was not corrected): its lit light at the window's centre.
+#[inline(always)]
+pub(super) fn lit_sum_without_leak(
+    basis: &MotionBasis,
+    (u0, k0): (f32, f32),
+    phase: [f32; 3],
+    amp: [f32; 3],
+    offset: [f32; 3],
+) -> f32 {
     let corrected_before = (u0 != 0.0) | (k0 != 0.0);
-    let leak0 = leak_at(basis, 0, (u0, k0), (row.phase[0][x], row.amp[0][x]));
-    let leak1 = leak_at(basis, 1, (u0, k0), (row.phase[1][x], row.amp[1][x]));
-    let leak2 = leak_at(basis, 2, (u0, k0), (row.phase[2][x], row.amp[2][x]));
+    let leak0 = leak_at(basis, 0, (u0, k0), (phase[0], amp[0]));
+    let leak1 = leak_at(basis, 1, (u0, k0), (phase[1], amp[1]));
+    let leak2 = leak_at(basis, 2, (u0, k0), (phase[2], amp[2]));
     let (leak0, leak1, leak2) = if corrected_before {
         (leak0, leak1, leak2)
     } else {
@@ -317,24 +347,12 @@ fn brightness_from_offsets(step: &Step<'_>, row: &RowPlanes<'_>, x: usize) -> f3
     // lit offsets' sum is Σ_c (Σ_s unmix[s][c])·that.
     let (mix, unmix, bias) = (&basis.mix_of_slot, &basis.unmix_of_slot, &basis.bias_gray);
     let channel = |c: usize| {
-        row.offset[c][x] - (mix[0][c] * leak0 + mix[1][c] * leak1 + mix[2][c] * leak2) - bias[c]
+        offset[c] - (mix[0][c] * leak0 + mix[1][c] * leak1 + mix[2][c] * leak2) - bias[c]
     };
     let (c0, c1, c2) = (channel(0), channel(1), channel(2));
-    let now = (unmix[0][0] + unmix[1][0] + unmix[2][0]) * c0
+    (unmix[0][0] + unmix[1][0] + unmix[2][0]) * c0
         + (unmix[0][1] + unmix[1][1] + unmix[2][1]) * c1
-        + (unmix[0][2] + unmix[1][2] + unmix[2][2]) * c2;
-    let before = row.lit_sum[x];
-    let rate = (now - before) * step.inv_since / now;
-    let taken = (step.offset_brightness_weight > 0.0)
-        & (step.inv_since > 0.0)
-        & (before > 0.0)
-        & (now > 0.0)
-        & (rate.abs() <= basis.max_brightness_rate);
-    if taken {
-        rate
-    } else {
-        f32::NAN
-    }
+        + (unmix[0][2] + unmix[1][2] + unmix[2][2]) * c2
 }
 
 /// [`leak_of_slot`] of slot `slot` at `(u, κ)` for the phasor of `(phase, amp)`, its three

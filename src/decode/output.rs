@@ -7,6 +7,7 @@
 //! coordinate for the temporal order check). Everything is allocated once for a shape by
 //! [`DecodeOutput::new`] and reused: no stage allocates per window.
 
+use super::motion_advect::AdvectScratch;
 use super::smooth_blocks::BlockScratch;
 use super::{invalid, motion_noise, phasor, smooth, WindowSolver, BAND_ROWS};
 
@@ -94,6 +95,8 @@ pub struct DecodeOutput {
     pub(crate) noise_scratch: Vec<f32>,
     /// The motion model's block planes, when it sums its evidence over blocks.
     pub(crate) motion_blocks: BlockScratch,
+    /// The advected brightness change's planes, when it is on.
+    pub(crate) advect: AdvectScratch,
     /// The patch velocity of every pixel in the last window the motion model decoded (NaN where
     /// its patch had no evidence), px/s, and that window's centre time (NaN before the first):
     /// the acceleration's other end.
@@ -186,6 +189,7 @@ impl DecodeOutput {
             band_scratch_len,
             noise_scratch: Vec::with_capacity(n / (motion_noise::GRID_STEP_PX.pow(2)) + width),
             motion_blocks: BlockScratch::default(),
+            advect: AdvectScratch::default(),
             patch_velocity_px_per_s: vec![f32::NAN; n],
             patch_velocity_time_s: f64::NAN,
             patch_moving: vec![0; n],
@@ -251,7 +255,7 @@ impl DecodeOutput {
             + self.jump.capacity()
             + self.patch_moving.capacity()
             + self.recent_age_windows.capacity();
-        floats * std::mem::size_of::<f32>() + bytes
+        floats * std::mem::size_of::<f32>() + bytes + self.advect.memory_bytes()
     }
 
     /// Number of valid pixels.

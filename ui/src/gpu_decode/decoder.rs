@@ -103,6 +103,12 @@ pub(super) fn unsupported(
             params.motion.block_px
         ));
     }
+    if params.motion.advected_brightness {
+        return Some(
+            "the GPU decoder takes each patch's one brightness change, not one carried with the image (MotionParams::advected_brightness)"
+                .to_string(),
+        );
+    }
     None
 }
 
