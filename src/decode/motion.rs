@@ -93,6 +93,16 @@
 //! with no more gross errors, the swaying hand 97.2–98.3 % at 0.18–0.20 mm (stop 51: 96.9–98.0 %,
 //! 0.20–0.21 mm), the 10 mm tremor 98.4 % at 0.160 mm (98.0 %, 0.165 mm).
 //!
+//! **Opt-in: the brightness change carried with the image** ([`super::MotionParams::advected_brightness`],
+//! `decode/motion_advect.rs`, CPU only). Where the patch's `κ` is off is mostly near outlines,
+//! and not by the noise (without camera noise the swaying hand keeps most of its error): much
+//! of the per-pixel variation is the skin's light sliding across the pixels, `κ(p) = κ₀ +
+//! v·∇ln L(p)`. With it on, the last step also solves each patch for `v` and gives each moving
+//! pixel the change its own lit gradient makes: the swaying hand's RMS falls by 8–9 % (0 mm
+//! with sway 0.192 → 0.177 mm, 10 mm with sway 0.196 → 0.180 mm) and the optical-axis rows are
+//! unchanged to 3 µm, for about 5–6 ms more per 640×400 window (docs/accuracy.md, Motion,
+//! stop 53). It stays opt-in until the GPU does the same and its sums cost less.
+//!
 //! **Acceleration.** Where the tremor turns back the velocity changes fast and the three-step
 //! solve returns the frames' mean coordinate rather than the centre's; the shift, `a·mean(τ²)/2`,
 //! is the same at every frequency and so invisible to the Chebyshev residual. The last step

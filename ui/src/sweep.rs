@@ -35,6 +35,10 @@ pub struct SweepArgs {
     /// Frames of the fingertip trials for `--motion` (3 s at 121 FPS; 0 leaves them out).
     #[arg(long, default_value_t = 363)]
     pub tip_frames: u64,
+    /// For `--motion`: the motion model with its brightness change carried with the image
+    /// (`MotionParams::advected_brightness`, opt-in, CPU only).
+    #[arg(long)]
+    pub advected_brightness: bool,
 }
 
 fn decode(rig: &VirtualRig, params: DecodeParams) -> Result<Accuracy> {

@@ -73,7 +73,7 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     for sway in [false, true] {
         for &amplitude_mm in &args.amplitudes_mm {
             let rig = motion_rig(args.width, args.height, amplitude_mm, sway, args.seed)?;
-            for (name, params) in decoders() {
+            for (name, params) in decoders(args.advected_brightness) {
                 let acc: MotionAccuracy = evaluate_motion(&rig, params, args.frames, 3)
                     .with_context(|| format!("amplitude {amplitude_mm} mm, {name}"))?;
                 println!(
@@ -95,11 +95,18 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     Ok(())
 }
 
-/// The decoders the sweep compares.
-fn decoders() -> [(&'static str, DecodeParams); 2] {
+/// The decoders the sweep compares; the motion model's brightness change carried with the
+/// image when `advected`.
+fn decoders(advected: bool) -> [(&'static str, DecodeParams); 2] {
     [
         ("still model", MotionParams::off()),
-        ("motion model", MotionParams::default()),
+        (
+            "motion model",
+            MotionParams {
+                advected_brightness: advected,
+                ..MotionParams::default()
+            },
+        ),
     ]
     .map(|(name, motion)| {
         (
@@ -138,7 +145,7 @@ fn fingertip_table(args: &SweepArgs) -> Result<()> {
     for sway in [false, true] {
         for &amplitude_mm in &args.amplitudes_mm {
             let rig = motion_rig(args.width, args.height, amplitude_mm, sway, args.seed)?;
-            for (name, params) in decoders() {
+            for (name, params) in decoders(args.advected_brightness) {
                 let tip = fingertip_tremor(&rig, params, args.tip_frames)
                     .with_context(|| format!("fingertip, amplitude {amplitude_mm} mm, {name}"))?;
                 println!(
