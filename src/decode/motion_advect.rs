@@ -175,6 +175,20 @@ fn lit_row(basis: &MotionBasis, planes: [&[f32]; 3], [u, kappa]: [&[f32]; 2], ds
     let [phase, amp, offset] = planes;
     let (phase, amp, offset) = (&phase[..3 * w], &amp[..3 * w], &offset[..3 * w]);
     let (u, kappa) = (&u[..w], &kappa[..w]);
+    if u.iter().chain(kappa).all(|&v| v == 0.0) {
+        // No pixel of the row was corrected, so none leaked: the same sums, without the
+        // leak's nine sines and cosines per pixel.
+        for x in 0..w {
+            dst[x] = lit_sum_without_leak(
+                basis,
+                (0.0, 0.0),
+                [0.0; 3],
+                [0.0; 3],
+                [offset[x], offset[w + x], offset[2 * w + x]],
+            );
+        }
+        return;
+    }
     for x in 0..w {
         dst[x] = lit_sum_without_leak(
             basis,
@@ -202,16 +216,48 @@ fn gradient_row(rows: [&[f32]; 3], links: [&[u8]; 2], has_below: bool, [gx, gy]:
     let [above, at, below] = rows;
     let (above, at, below, gy) = (&above[..w], &at[..w], &below[..w], &mut gy[..w]);
     let here = &links[1][..w];
-    let from_above = links[0];
-    for x in 0..w {
-        let left = x > 0 && here[x.saturating_sub(1)] & RIGHT != 0;
+    // The first row has no links from above: a row of none stands in.
+    let none = [0u8; 0];
+    let from_above = if links[0].len() >= w {
+        &links[0][..w]
+    } else {
+        &none[..]
+    };
+    let from_above_at = |x: usize| from_above.get(x).copied().unwrap_or(0);
+    let vertical = |x: usize| {
+        let up = from_above_at(x) & DOWN != 0;
+        let down = has_below & (here[x] & DOWN != 0);
+        log_difference(at[x], (above[x], up), (below[x], down))
+    };
+    if w == 0 {
+        return;
+    }
+    // The ends of the row, then its inside with plain indices, which vectorises.
+    for x in [0, w - 1] {
+        let left = x > 0 && here[x - 1] & RIGHT != 0;
         let right = x + 1 < w && here[x] & RIGHT != 0;
         let l = at[x.saturating_sub(1)];
         let r = at[(x + 1).min(w - 1)];
         gx[x] = log_difference(at[x], (l, left), (r, right));
-        let up = !from_above.is_empty() && from_above[x.min(from_above.len() - 1)] & DOWN != 0;
-        let down = has_below && here[x] & DOWN != 0;
-        gy[x] = log_difference(at[x], (above[x], up), (below[x], down));
+        gy[x] = vertical(x);
+    }
+    if from_above.is_empty() {
+        for x in 1..w.saturating_sub(1) {
+            let left = here[x - 1] & RIGHT != 0;
+            let right = here[x] & RIGHT != 0;
+            gx[x] = log_difference(at[x], (at[x - 1], left), (at[x + 1], right));
+            let down = has_below & (here[x] & DOWN != 0);
+            gy[x] = log_difference(at[x], (above[x], false), (below[x], down));
+        }
+    } else {
+        for x in 1..w.saturating_sub(1) {
+            let left = here[x - 1] & RIGHT != 0;
+            let right = here[x] & RIGHT != 0;
+            gx[x] = log_difference(at[x], (at[x - 1], left), (at[x + 1], right));
+            let up = from_above[x] & DOWN != 0;
+            let down = has_below & (here[x] & DOWN != 0);
+            gy[x] = log_difference(at[x], (above[x], up), (below[x], down));
+        }
     }
 }
 
