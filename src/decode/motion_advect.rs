@@ -130,17 +130,26 @@ pub(crate) fn sum_advection(basis: &MotionBasis, out: &mut DecodeOutput, decay: 
         let [gx, gy] = &scratch.gradient;
         let ke = &out.motion_evidence[n..2 * n];
         let (uk, kk) = (&out.unit_im, &out.support);
-        let mut rows: Vec<[&mut [f32]; SUMS]> = Vec::with_capacity(h);
-        let mut planes = scratch.sums.each_mut().map(|s| s.chunks_mut(w));
-        for _ in 0..h {
-            let row = planes.each_mut().map(|p| p.next().unwrap_or_default());
-            rows.push(row);
-        }
-        rows.into_par_iter().enumerate().for_each(|(y, dst)| {
-            let r = y * w..(y + 1) * w;
-            let g = [&gx[r.clone()], &gy[r.clone()]];
-            products_row([&uk[r.clone()], &kk[r.clone()], &ke[r]], g, dst);
-        });
+        let [s0, s1, s2, s3, s4, s5, s6, s7, s8] = &mut scratch.sums;
+        let rows = (
+            s0.par_chunks_mut(w),
+            s1.par_chunks_mut(w),
+            s2.par_chunks_mut(w),
+            s3.par_chunks_mut(w),
+            s4.par_chunks_mut(w),
+            s5.par_chunks_mut(w),
+            s6.par_chunks_mut(w),
+            s7.par_chunks_mut(w),
+            s8.par_chunks_mut(w),
+        );
+        rows.into_par_iter()
+            .enumerate()
+            .for_each(|(y, (s0, s1, s2, s3, s4, s5, s6, s7, s8))| {
+                let r = y * w..(y + 1) * w;
+                let g = [&gx[r.clone()], &gy[r.clone()]];
+                let dst = [s0, s1, s2, s3, s4, s5, s6, s7, s8];
+                products_row([&uk[r.clone()], &kk[r.clone()], &ke[r]], g, dst);
+            });
     }
     for triple in scratch.sums.chunks_mut(3) {
         let [a, b, c] = triple else { continue };

@@ -5,7 +5,8 @@
 //! change and acceleration) beside the stages' scratch planes and what a stream carries from
 //! one window to the next (the patch velocities for the acceleration, each pixel's recent
 //! coordinate for the temporal order check). Everything is allocated once for a shape by
-//! [`DecodeOutput::new`] and reused: no stage allocates per window.
+//! [`DecodeOutput::new`] (the opt-in advected brightness change's planes on its first window)
+//! and reused: no stage allocates per window.
 
 use super::motion_advect::AdvectScratch;
 use super::smooth_blocks::BlockScratch;
