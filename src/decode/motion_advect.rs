@@ -24,8 +24,9 @@
 //! ([`PRIOR_IMAGE_VELOCITY_PX_PER_S`]). `L` is this window's lit offset sum without the
 //! fringe the first step's correction says motion leaked into it
 //! ([`super::motion_moving::lit_sum_without_leak`]), and its gradient the central difference
-//! over connected neighbours (one-sided at an edge, none across one). Dropping the `uk·g` sums (the coupling of `v` with `u`) lost
-//! the gain and more; `v` along image x alone gained nothing.
+//! over connected neighbours (one-sided at an edge, none across one). Dropping the `uk·g` sums
+//! (the coupling of `v` with `u`) lost the gain and more; `v` along image x alone gained
+//! nothing.
 //!
 //! **Where it acts.** Only pixels whose patch the step finds moving take the advected `(u, κ)`;
 //! their right-hand sides `ue`, `ke` are replaced by those that give it with the patch's own
@@ -46,13 +47,13 @@ use super::DecodeOutput;
 use rayon::prelude::*;
 
 /// The prior of a patch's image velocity before its evidence: zero, with this standard
-/// deviation (camera px/s; the rig's hand swaying 4 mm at 4–6 Hz moves its image by about
-/// 150 px/s at 640×400). On the motion sweep's rows 150 and 400 gave the same RMS within 1 µm
-/// and the same coverage within 0.3 points.
+/// deviation (camera px/s), so that a patch whose lit image has no gradient keeps its `κ₀`.
+/// On the motion sweep's rows 150 and 400 gave the same RMS within 1 µm and the same coverage
+/// within 0.3 points.
 pub const PRIOR_IMAGE_VELOCITY_PX_PER_S: f32 = 150.0;
 
-/// The largest gradient of `ln L` taken, per px: a steeper one is an outline's mixed pixel or
-/// a specular glint, not shading that slides.
+/// The largest gradient of `ln L` taken, per px (a guard, not tuned): a steeper one is an
+/// outline's mixed pixel or a specular glint rather than shading that slides.
 const MAX_LOG_GRADIENT_PER_PX: f32 = 0.5;
 
 /// Number of summed planes beside the step's own.
@@ -115,15 +116,12 @@ pub(crate) fn sum_advection(basis: &MotionBasis, out: &mut DecodeOutput, decay: 
             .for_each(|(y, (gx, gy))| {
                 let row = |y: usize| &lit[y * w..(y + 1) * w];
                 let links = |y: usize| &connect[y * w..(y + 1) * w];
-                // Rows without a neighbour stand in for it, with no link to it.
-                let (above, down_from_above) = if y > 0 {
-                    (row(y - 1), links(y - 1))
-                } else {
-                    (row(y), &NO_LINKS[..0])
-                };
-                let below = if y + 1 < h { row(y + 1) } else { row(y) };
-                let rows = [above, row(y), below];
-                gradient_row(rows, [down_from_above, links(y)], y + 1 < h, [gx, gy]);
+                let (has_above, has_below) = (y > 0, y + 1 < h);
+                let above = if has_above { y - 1 } else { y };
+                let below = if has_below { y + 1 } else { y };
+                let rows = [row(above), row(y), row(below)];
+                let links = [links(above), links(y)];
+                gradient_row(rows, links, [has_above, has_below], [gx, gy]);
             });
     }
     {
@@ -168,9 +166,6 @@ pub(crate) fn sum_advection(basis: &MotionBasis, out: &mut DecodeOutput, decay: 
     out.advect = scratch;
 }
 
-/// An empty row of links: the first row has none from above.
-const NO_LINKS: [u8; 0] = [];
-
 /// One row's lit sums `L` ([`lit_sum_without_leak`]) from its row-planar phases, amplitudes
 /// and offsets and its previous correction `(u, κ)`.
 #[multiversion::multiversion(targets(
@@ -208,64 +203,46 @@ fn lit_row(basis: &MotionBasis, planes: [&[f32]; 3], [u, kappa]: [&[f32]; 2], ds
     }
 }
 
-/// One row's `∇ln L` from the lit sums of the rows above, at and below it (`rows`), the links
-/// down from the row above and from this row (`links`; the first is empty on the first row)
-/// and whether the row below exists: across each axis the difference of `ln L` between the
-/// connected neighbours, taken as `2·(L_b − L_a)/(L_b + L_a)` per pixel of distance (one-sided
-/// with one neighbour, 0 with none or a sum that is not positive), limited to
-/// [`MAX_LOG_GRADIENT_PER_PX`].
+/// One row's `∇ln L` from the lit sums of the rows above, at and below it (`rows`; where a
+/// row has no neighbour, any row stands in), the links down from the row above and from this
+/// row (`links`) and whether the rows above and below exist: across each axis the difference of
+/// `ln L` between the connected neighbours, taken as `2·(L_b − L_a)/(L_b + L_a)` per pixel of
+/// distance (one-sided with one neighbour, 0 with none or a sum that is not positive), limited
+/// to [`MAX_LOG_GRADIENT_PER_PX`].
 #[multiversion::multiversion(targets(
     "x86_64+avx512f+avx512bw+avx512vl+avx512dq+avx2+fma",
     "x86_64+avx2+fma",
     "x86_64+sse4.1"
 ))]
-fn gradient_row(rows: [&[f32]; 3], links: [&[u8]; 2], has_below: bool, [gx, gy]: [&mut [f32]; 2]) {
+fn gradient_row(
+    rows: [&[f32]; 3],
+    links: [&[u8]; 2],
+    [has_above, has_below]: [bool; 2],
+    [gx, gy]: [&mut [f32]; 2],
+) {
     let w = gx.len();
-    let [above, at, below] = rows;
-    let (above, at, below, gy) = (&above[..w], &at[..w], &below[..w], &mut gy[..w]);
-    let here = &links[1][..w];
-    // The first row has no links from above: a row of none stands in.
-    let none = [0u8; 0];
-    let from_above = if links[0].len() >= w {
-        &links[0][..w]
-    } else {
-        &none[..]
-    };
-    let from_above_at = |x: usize| from_above.get(x).copied().unwrap_or(0);
-    let vertical = |x: usize| {
-        let up = from_above_at(x) & DOWN != 0;
-        let down = has_below & (here[x] & DOWN != 0);
-        log_difference(at[x], (above[x], up), (below[x], down))
-    };
     if w == 0 {
         return;
     }
-    // The ends of the row, then its inside with plain indices, which vectorises.
+    let [above, at, below] = rows;
+    let (above, at, below, gy) = (&above[..w], &at[..w], &below[..w], &mut gy[..w]);
+    let (from_above, here) = (&links[0][..w], &links[1][..w]);
+    // The row's inside with plain indices, which vectorises; then its two ends.
+    for x in 0..w {
+        let up = has_above & (from_above[x] & DOWN != 0);
+        let down = has_below & (here[x] & DOWN != 0);
+        gy[x] = log_difference(at[x], (above[x], up), (below[x], down));
+    }
+    for x in 1..w - 1 {
+        let left = here[x - 1] & RIGHT != 0;
+        let right = here[x] & RIGHT != 0;
+        gx[x] = log_difference(at[x], (at[x - 1], left), (at[x + 1], right));
+    }
     for x in [0, w - 1] {
         let left = x > 0 && here[x - 1] & RIGHT != 0;
         let right = x + 1 < w && here[x] & RIGHT != 0;
-        let l = at[x.saturating_sub(1)];
-        let r = at[(x + 1).min(w - 1)];
+        let (l, r) = (at[x.saturating_sub(1)], at[(x + 1).min(w - 1)]);
         gx[x] = log_difference(at[x], (l, left), (r, right));
-        gy[x] = vertical(x);
-    }
-    if from_above.is_empty() {
-        for x in 1..w.saturating_sub(1) {
-            let left = here[x - 1] & RIGHT != 0;
-            let right = here[x] & RIGHT != 0;
-            gx[x] = log_difference(at[x], (at[x - 1], left), (at[x + 1], right));
-            let down = has_below & (here[x] & DOWN != 0);
-            gy[x] = log_difference(at[x], (above[x], false), (below[x], down));
-        }
-    } else {
-        for x in 1..w.saturating_sub(1) {
-            let left = here[x - 1] & RIGHT != 0;
-            let right = here[x] & RIGHT != 0;
-            gx[x] = log_difference(at[x], (at[x - 1], left), (at[x + 1], right));
-            let up = from_above[x] & DOWN != 0;
-            let down = has_below & (here[x] & DOWN != 0);
-            gy[x] = log_difference(at[x], (above[x], up), (below[x], down));
-        }
     }
 }
 

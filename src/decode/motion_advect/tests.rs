@@ -151,7 +151,7 @@ fn the_lit_gradient_follows_the_links() {
     gradient_row(
         [&rows[0], &rows[1], &rows[2]],
         [&vec![DOWN; w], &links],
-        true,
+        [true, true],
         [&mut gx, &mut gy],
     );
     for x in 0..w {
@@ -159,14 +159,32 @@ fn the_lit_gradient_follows_the_links() {
         assert!((gx[x] - 0.05).abs() < 1e-4, "x {x}: {}", gx[x]);
         assert!((gy[x] - 0.02).abs() < 1e-4, "x {x}: {}", gy[x]);
     }
-    // Without any link a pixel has no gradient; a dark neighbour gives none either.
+    // The first row (no row above: its stand-in's links are not followed) and the last (the
+    // same below) take one-sided differences.
+    gradient_row(
+        [&rows[1], &rows[1], &rows[2]],
+        [&vec![DOWN; w], &links],
+        [false, true],
+        [&mut gx, &mut gy],
+    );
+    assert!(gy.iter().all(|g| (g - 0.02).abs() < 1e-4), "{gy:?}");
+    // Without any link a pixel has no gradient.
+    gradient_row(
+        [&rows[0], &rows[1], &rows[2]],
+        [&vec![DOWN; w], &[0u8; 6]],
+        [false, false],
+        [&mut gx, &mut gy],
+    );
+    assert!(gx.iter().chain(&gy).all(|&g| g == 0.0), "{gx:?} {gy:?}");
+    // Beside a dark pixel (no positive sum) the differences across it are not taken.
     let mut dark = rows[1].clone();
     dark[4] = 0.0;
     gradient_row(
         [&rows[0], &dark, &rows[2]],
-        [&NO_LINKS[..0], &[0u8; 6]],
-        false,
+        [&vec![DOWN; w], &[RIGHT; 6]],
+        [false, false],
         [&mut gx, &mut gy],
     );
-    assert!(gx.iter().chain(&gy).all(|&g| g == 0.0), "{gx:?} {gy:?}");
+    assert_eq!((gx[3], gx[5]), (0.0, 0.0), "{gx:?}");
+    assert!((gx[1] - 0.05).abs() < 1e-4, "{gx:?}");
 }
