@@ -22,7 +22,10 @@
 //! The median time of the motion model's stage over the decoded windows goes to stderr.
 //! `FROZEN=1` also decodes each compared window with the hand held still at its centre frame's
 //! pose (the same patterns and noise draws) and prints that decode's figures over the same
-//! pixels: the floor the pixels' noise sets.
+//! pixels, and each bin's RMS held still: the floor the pixels' noise sets. `MODEL_ERRORS=1`
+//! adds each bin's velocity and brightness change against the truth (slope and RMS over the kept
+//! pixels; the true brightness change from the window's outer frames rendered under flat light),
+//! and `NO_NOISE=1` renders without camera noise.
 //! `STILL=1` also prints, per window, the share of every lit pixel refused for each flag.
 //! `BY_OUTLINE=1` tallies by the distance to the nearest pixel that is not skin in one of the
 //! window's frames instead of by turn, and `ALL_SKIN=1` counts the still skin too. The
