@@ -119,7 +119,7 @@ pub use super::motion_basis::{MotionBasis, MAX_TURN_RAD};
 use super::motion_blocks::step_in_blocks;
 use super::motion_correct::{correct_row, RowPlanes, Step};
 pub(crate) use super::motion_evidence::{chebyshev3, evidence, gain2, inconsistent};
-use super::smooth::{smooth_planes, Planes};
+use super::smooth::{smooth_apart, smooth_planes, Planes};
 use super::{DecodeOutput, DecodeParams, WindowSolver};
 use rayon::prelude::*;
 
@@ -222,20 +222,13 @@ pub(crate) fn motion_step(
     }
     {
         smooth_planes(&mut Planes::of_unit_phasor(out), decay);
+        // The evidence planes are taken out of the output while its scratch sums them.
         let n = out.width * out.height;
-        let (e0, rest) = out.motion_evidence.split_at_mut(n);
+        let mut evidence = std::mem::take(&mut out.motion_evidence);
+        let (e0, rest) = evidence.split_at_mut(n);
         let (e1, e2) = rest.split_at_mut(n);
-        let mut planes = Planes {
-            planes: [e0, e1, e2],
-            w: out.width,
-            h: out.height,
-            connect: &out.connect,
-            tmp: &mut out.smooth_tmp,
-            band_scratch: &mut out.band_scratch,
-            band_scratch_len: out.band_scratch_len,
-            vertical_state: &mut out.vertical_state,
-        };
-        smooth_planes(&mut planes, decay);
+        smooth_apart(out, [e0, e1, &mut e2[..n]], decay);
+        out.motion_evidence = evidence;
     }
     if advected {
         apply_advection(&step, out);

@@ -42,7 +42,7 @@ use super::motion::MOTION_SIGNIFICANCE;
 use super::motion_basis::MotionBasis;
 use super::motion_correct::Step;
 use super::motion_moving::lit_sum_without_leak;
-use super::smooth::{smooth_planes, Planes};
+use super::smooth::smooth_apart;
 use super::DecodeOutput;
 use rayon::prelude::*;
 
@@ -151,17 +151,7 @@ pub(crate) fn sum_advection(basis: &MotionBasis, out: &mut DecodeOutput, decay: 
     }
     for triple in scratch.sums.chunks_mut(3) {
         let [a, b, c] = triple else { continue };
-        let mut planes = Planes {
-            planes: [a, b, c],
-            w,
-            h,
-            connect: &out.connect,
-            tmp: &mut out.smooth_tmp,
-            band_scratch: &mut out.band_scratch,
-            band_scratch_len: out.band_scratch_len,
-            vertical_state: &mut out.vertical_state,
-        };
-        smooth_planes(&mut planes, decay);
+        smooth_apart(out, [a, b, c], decay);
     }
     out.advect = scratch;
 }

@@ -78,6 +78,22 @@ impl<'a> Planes<'a> {
     }
 }
 
+/// [`smooth_planes`] of three planes held apart from `out` (taken out of it, or scratch of
+/// their own), with `out`'s connectivity and scratch.
+pub(crate) fn smooth_apart(out: &mut DecodeOutput, planes: [&mut [f32]; 3], decay: f32) {
+    let mut planes = Planes {
+        planes,
+        w: out.width,
+        h: out.height,
+        connect: &out.connect,
+        tmp: &mut out.smooth_tmp,
+        band_scratch: &mut out.band_scratch,
+        band_scratch_len: out.band_scratch_len,
+        vertical_state: &mut out.vertical_state,
+    };
+    smooth_planes(&mut planes, decay);
+}
+
 /// The recursion alone, over the connectivity already computed, with `decay`: the motion
 /// model's passes (see [`super::motion`]) sum their evidence in the same way.
 pub(crate) fn smooth_planes(planes: &mut Planes<'_>, decay: f32) {
