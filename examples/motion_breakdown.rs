@@ -12,7 +12,8 @@
 //! `MOTION_DECAY`, `MOVING_DECAY` (the moving pixels' wider average of the unit phasor,
 //! `MotionParams::moving_unit_decay`; 0 turns it off), `OFFSET_BRIGHTNESS`
 //! (`MotionParams::offset_brightness_weight`), `ADVECTED=1`
-//! (`MotionParams::advected_brightness`), `ITERATIONS`, `MOTION_BLOCK` (the motion model's evidence summed over blocks
+//! (`MotionParams::advected_brightness`), `FROM_REST=1` (`MotionParams::predicted_start`
+//! off), `ITERATIONS`, `MOTION_BLOCK` (the motion model's evidence summed over blocks
 //! of that many pixels square), `REACH` (the sums' reach scale, `DecodeParams::reach_scale`;
 //! the decays are stated at 640 px wide), `EDGE_PHASE`, `EDGE_COLOUR` and `EDGE_CHROMA` (the
 //! edge-aware filters' links, `SmoothingParams`), `MOTION_OFF=1` (the paper's still window),
@@ -145,6 +146,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if let Some(v) = env("MOVING_DECAY") {
         params.motion.moving_unit_decay = (v > 0.0).then_some(v);
+    }
+    if std::env::var("FROM_REST").is_ok() {
+        params.motion.predicted_start = false;
     }
     if std::env::var("ADVECTED").is_ok() {
         params.motion.advected_brightness = true;

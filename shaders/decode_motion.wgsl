@@ -95,6 +95,8 @@ const AGE: u32 = 7u;
 // The sum of each pixel's lit offsets in the last window (src/decode/motion_moving.rs).
 const LIT_SUM: u32 = 8u;
 
+// The weight of a predicted start's written evidence (motion_predict::PREDICTION_WEIGHT).
+const PREDICTION_WEIGHT: f32 = 1.0e9;
 const MOTION: u32 = 128u;
 const MOVING: u32 = 1u;
 const KNOWN: u32 = 2u;
@@ -615,6 +617,25 @@ fn motion_step(id: vec3<u32>, refine: bool, last: bool) {
     state[VELOCITY * n + i] = u * keep;
     state[BRIGHTNESS * n + i] = kappa * keep;
     write_unit(i, c, reason);
+}
+
+// The sums of a first step started from the previous window (src/decode/motion_predict.rs):
+// evidence of each pixel's patch velocity there, where that patch moved and was solved, else of
+// rest, so strong that the patch solve returns it.
+@compute @workgroup_size(8, 8)
+fn predict_sums(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= P.width || id.y >= P.height) {
+        return;
+    }
+    let n = P.n;
+    let i = id.y * P.width + id.x;
+    let weight = PREDICTION_WEIGHT;
+    work[RE * n + i] = weight;
+    work[IM * n + i] = 0.0;
+    work[SUPPORT * n + i] = weight;
+    work[UE * n + i] = weight * known_velocity(i);
+    work[KE * n + i] = 0.0;
+    work[COUNT * n + i] = 1.0;
 }
 
 @compute @workgroup_size(8, 8)

@@ -37,6 +37,7 @@ mod motion_correct;
 mod motion_evidence;
 mod motion_moving;
 pub mod motion_noise;
+mod motion_predict;
 pub mod noise;
 mod output;
 pub mod phasor;
@@ -166,6 +167,11 @@ pub struct MotionParams {
     /// holds eleven more planes; measured in docs/accuracy.md, Motion, stop 53). Per-pixel sums
     /// only: with [`Self::block_px`] above 1 it is not taken.
     pub advected_brightness: bool,
+    /// Start each window's Gauss–Newton steps from the motion of the stream's window just
+    /// before (its patch velocity carried on by its acceleration, and its brightness change)
+    /// rather than from rest: one more correction, without sums (`motion_predict`). Per-pixel
+    /// sums only: with [`Self::block_px`] above 1 it is not taken.
+    pub predicted_start: bool,
 }
 
 impl MotionParams {
@@ -181,6 +187,12 @@ impl MotionParams {
     /// [`Self::block_px`] up to 4.
     pub fn block_size(&self) -> usize {
         self.block_px.clamp(1, 4) as usize
+    }
+
+    /// Whether a window that follows the stream's previous one starts from its motion
+    /// ([`Self::predicted_start`], per-pixel sums only).
+    pub fn predicts_start(&self) -> bool {
+        self.predicted_start && self.block_size() == 1 && self.iterations > 0
     }
 }
 
@@ -207,6 +219,7 @@ impl Default for MotionParams {
             // Motion, stop 52: 0.3–0.7 measured).
             offset_brightness_weight: 0.4,
             advected_brightness: false,
+            predicted_start: true,
         }
     }
 }
@@ -498,8 +511,17 @@ pub(crate) fn finish_window(
             basis.frame_interval_s,
         );
         let iterations = params.motion.iterations;
+        // After the window just before, the first step starts from its motion.
+        let predicted = previous.is_some() && params.motion.predicts_start();
+        if predicted {
+            motion_predict::predicted_sums(out);
+            let kind = motion::StepKind::Predicted;
+            motion::motion_step(
+                solver, params, noise_gray, basis, kind, false, previous, out,
+            );
+        }
         for i in 0..iterations {
-            let kind = if i == 0 {
+            let kind = if i == 0 && !predicted {
                 motion::StepKind::FromRest
             } else {
                 motion::StepKind::Refine

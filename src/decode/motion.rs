@@ -220,7 +220,7 @@ pub(crate) fn motion_step(
     if advected {
         sum_advection(basis, out, decay);
     }
-    {
+    if kind != StepKind::Predicted {
         smooth_planes(&mut Planes::of_unit_phasor(out), decay);
         // The evidence planes are taken out of the output while its scratch sums them.
         let n = out.width * out.height;
@@ -360,6 +360,9 @@ pub(crate) enum StepKind {
     /// From the previous step: the phase planes hold its correction at the values in the
     /// velocity and brightness planes, which it undoes before solving the patch's evidence.
     Refine,
+    /// From rest, to the motion predicted from the previous window: the sums hold the
+    /// prediction (`motion_predict`), taken as they are, unsmoothed.
+    Predicted,
 }
 
 /// Moves each valid pixel's coordinate from the window's mean to its centre time.

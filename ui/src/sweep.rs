@@ -39,6 +39,10 @@ pub struct SweepArgs {
     /// (`MotionParams::advected_brightness`, opt-in, CPU only).
     #[arg(long)]
     pub advected_brightness: bool,
+    /// For `--motion`: the motion model's steps from rest in every window, as before the
+    /// predicted start (`MotionParams::predicted_start` off).
+    #[arg(long)]
+    pub from_rest: bool,
 }
 
 fn decode(rig: &VirtualRig, params: DecodeParams) -> Result<Accuracy> {

@@ -73,7 +73,7 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     for sway in [false, true] {
         for &amplitude_mm in &args.amplitudes_mm {
             let rig = motion_rig(args.width, args.height, amplitude_mm, sway, args.seed)?;
-            for (name, params) in decoders(args.advected_brightness) {
+            for (name, params) in decoders(args) {
                 let acc: MotionAccuracy = evaluate_motion(&rig, params, args.frames, 3)
                     .with_context(|| format!("amplitude {amplitude_mm} mm, {name}"))?;
                 println!(
@@ -95,15 +95,15 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     Ok(())
 }
 
-/// The decoders the sweep compares; the motion model's brightness change carried with the
-/// image when `advected`.
-fn decoders(advected: bool) -> [(&'static str, DecodeParams); 2] {
+/// The decoders the sweep compares; the motion model with the settings `args` names.
+fn decoders(args: &SweepArgs) -> [(&'static str, DecodeParams); 2] {
     [
         ("still model", MotionParams::off()),
         (
             "motion model",
             MotionParams {
-                advected_brightness: advected,
+                advected_brightness: args.advected_brightness,
+                predicted_start: !args.from_rest,
                 ..MotionParams::default()
             },
         ),
@@ -145,7 +145,7 @@ fn fingertip_table(args: &SweepArgs) -> Result<()> {
     for sway in [false, true] {
         for &amplitude_mm in &args.amplitudes_mm {
             let rig = motion_rig(args.width, args.height, amplitude_mm, sway, args.seed)?;
-            for (name, params) in decoders(args.advected_brightness) {
+            for (name, params) in decoders(args) {
                 let tip = fingertip_tremor(&rig, params, args.tip_frames)
                     .with_context(|| format!("fingertip, amplitude {amplitude_mm} mm, {name}"))?;
                 println!(

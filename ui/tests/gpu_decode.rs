@@ -138,7 +138,8 @@ fn compare_frames(
             refused += 1;
             continue;
         }
-        compare(&a, b, params.motion.model != MotionModel::Off);
+        let follows = windows > 1 && params.motion.predicted_start;
+        compare(&a, b, params.motion.model != MotionModel::Off, follows);
     }
     (windows, refused)
 }

@@ -384,10 +384,13 @@ impl GpuDecoder {
         let basis = motion_basis(window.solver, window.frames, window.params);
         let stages = match &basis {
             Some(basis) => {
-                self.motion_first_pass(basis, window.params, chebyshev_n, out.time_s)?;
+                let links =
+                    self.motion_first_pass(basis, window.params, chebyshev_n, out.time_s)?;
+                let predicted = links.previous_s.is_some() && window.params.motion.predicts_start();
                 motion::steps_then_unwrap(
                     window.params.motion.iterations,
                     window.params.motion.moving_unit_decay.is_some(),
+                    predicted,
                 )
             }
             None => {
@@ -428,13 +431,14 @@ impl GpuDecoder {
 
     /// The motion window's first submission: stage 1 with the evidence, the links, the noise
     /// grid, read back and finished on the host; then the window's values with that noise.
+    /// Returns the window's links to the stream.
     fn motion_first_pass(
         &mut self,
         basis: &MotionBasis,
         params: &DecodeParams,
         chebyshev_n: u32,
         time_s: f64,
-    ) -> Result<()> {
+    ) -> Result<motion::WindowLinks> {
         let noise_readback = self
             .noise_readback
             .as_ref()
@@ -473,7 +477,7 @@ impl GpuDecoder {
             (motion::MODEL_WINDOW_OFFSET * 4) as u64,
             bytemuck::cast_slice(&window),
         );
-        Ok(())
+        Ok(links)
     }
 
     /// One compute pass of `stages`, in order, with timestamps `2·pass` and `2·pass + 1`.

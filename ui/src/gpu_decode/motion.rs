@@ -29,8 +29,9 @@ pub(super) const WORK_PLANES_WITH_MOTION: usize = 13;
 pub(super) const STATE_PLANES: usize = 9;
 
 /// Entry points of the model, beyond the still decode's.
-pub const MOTION_STAGES: [&str; 13] = [
+pub const MOTION_STAGES: [&str; 14] = [
     "noise_grid",
+    "predict_sums",
     "step_horizontal",
     "step_vertical",
     "step_rest",
@@ -45,16 +46,21 @@ pub const MOTION_STAGES: [&str; 13] = [
     "wide_select",
 ];
 
-/// The entry points of a motion window after the noise is known: `iterations` steps (the
-/// evidence's sums, then the step), the still decode's stages on the corrected phasors (with
-/// the moving pixels' wider average of the unit phasor around the plain one when `wide`), with
-/// the settling before the spatial jumps and the temporal check after them.
-pub(super) fn steps_then_unwrap(iterations: u32, wide: bool) -> Vec<&'static str> {
+/// The entry points of a motion window after the noise is known: when `predicted`, a first
+/// step from the previous window's patch velocities (its sums written, not summed: the CPU's
+/// `motion_predict`); `iterations` steps (the evidence's sums, then the step); the still
+/// decode's stages on the corrected phasors (with the moving pixels' wider average of the unit
+/// phasor around the plain one when `wide`), with the settling before the spatial jumps and the
+/// temporal check after them.
+pub(super) fn steps_then_unwrap(iterations: u32, wide: bool, predicted: bool) -> Vec<&'static str> {
     let mut stages = Vec::new();
+    if predicted {
+        stages.extend(["predict_sums", "step_rest"]);
+    }
     for i in 0..iterations {
         let last = i + 1 == iterations;
         stages.extend(["step_horizontal", "step_vertical"]);
-        stages.push(match (i == 0, last) {
+        stages.push(match (i == 0 && !predicted, last) {
             (true, false) => "step_rest",
             (true, true) => "step_rest_last",
             (false, false) => "step_refine",
@@ -225,9 +231,15 @@ mod tests {
 
     #[test]
     fn steps_end_with_the_last_step_and_the_time_checks() {
-        let stages = steps_then_unwrap(2, false);
+        let stages = steps_then_unwrap(2, false, false);
         assert_eq!(stages[2], "step_rest");
         assert_eq!(stages[5], "step_refine_last");
+        // Started from the previous window: the written sums, a step from rest that is not
+        // the last, and every configured step refining.
+        let predicted = steps_then_unwrap(2, false, true);
+        assert_eq!(predicted[..2], ["predict_sums", "step_rest"]);
+        assert_eq!(predicted[4], "step_refine");
+        assert_eq!(predicted[7], "step_refine_last");
         let temporal = stages.iter().position(|s| *s == "temporal");
         let jumps = stages.iter().position(|s| *s == "jumps");
         assert!(
@@ -235,8 +247,8 @@ mod tests {
             "{stages:?}"
         );
         assert_eq!(stages.last(), Some(&"noise_grid_final"));
-        assert_eq!(steps_then_unwrap(1, false)[2], "step_rest_last");
-        let wide = steps_then_unwrap(2, true);
+        assert_eq!(steps_then_unwrap(1, false, false)[2], "step_rest_last");
+        let wide = steps_then_unwrap(2, true, false);
         let at = |name: &str| wide.iter().position(|s| *s == name);
         let (copy, plain, sum, select, unwrap) = (
             at("wide_copy"),
