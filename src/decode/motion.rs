@@ -93,6 +93,14 @@
 //! with no more gross errors, the swaying hand 97.2–98.3 % at 0.18–0.20 mm (stop 51: 96.9–98.0 %,
 //! 0.20–0.21 mm), the 10 mm tremor 98.4 % at 0.160 mm (98.0 %, 0.165 mm).
 //!
+//! **Started from the window before** ([`super::MotionParams::predicted_start`],
+//! `decode/motion_predict.rs`). The residual grows faster than the velocity on the side where
+//! the three-step window turns singular (π/3 per frame), so two steps from rest fall short
+//! there. After the window just before, a first step takes each pixel's patch velocity in that
+//! window (where that patch moved) and corrects from it, and the configured steps refine: the
+//! 20 mm tremor keeps 85.1 % of its moving skin where it kept 82.1 %, the swaying hand's RMS
+//! falls by 1–2 %, for about 2 ms more per 640×400 window (docs/accuracy.md, Motion, stop 54).
+//!
 //! **Opt-in: the brightness change carried with the image** ([`super::MotionParams::advected_brightness`],
 //! `decode/motion_advect.rs`, CPU only). Where the patch's `κ` is off is mostly near outlines,
 //! and not by the noise (without camera noise the swaying hand keeps most of its error): much

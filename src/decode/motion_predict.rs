@@ -52,10 +52,6 @@ pub(crate) fn predicted_sums(out: &mut DecodeOutput) {
             |(((((((uu, uk), kk), ue), ke), count), &patch_u), &moving)| {
                 let u = if moving != 0 && patch_u.is_finite() {
                     patch_u
-                        * std::env::var("PERTURB")
-                            .ok()
-                            .and_then(|v| v.parse::<f32>().ok())
-                            .unwrap_or(1.0)
                 } else {
                     0.0
                 };
