@@ -619,23 +619,30 @@ fn motion_step(id: vec3<u32>, refine: bool, last: bool) {
     write_unit(i, c, reason);
 }
 
-// The sums of a first step started from the previous window (src/decode/motion_predict.rs):
-// evidence of each pixel's patch velocity there, where that patch moved and was solved, else of
-// rest, so strong that the patch solve returns it.
+// The first step of a window started from the previous one (src/decode/motion_predict.rs): a
+// pixel whose patch moved there takes the evidence of that velocity as its sums, so strong that
+// the patch solve returns it, and the step from rest; every other pixel keeps stage 1's evidence
+// and no motion.
 @compute @workgroup_size(8, 8)
-fn predict_sums(@builtin(global_invocation_id) id: vec3<u32>) {
+fn step_predicted(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= P.width || id.y >= P.height) {
         return;
     }
     let n = P.n;
     let i = id.y * P.width + id.x;
-    let weight = PREDICTION_WEIGHT;
-    work[RE * n + i] = weight;
+    let u = known_velocity(i);
+    if (u == 0.0) {
+        state[VELOCITY * n + i] = 0.0;
+        state[BRIGHTNESS * n + i] = 0.0;
+        return;
+    }
+    work[RE * n + i] = PREDICTION_WEIGHT;
     work[IM * n + i] = 0.0;
-    work[SUPPORT * n + i] = weight;
-    work[UE * n + i] = weight * known_velocity(i);
+    work[SUPPORT * n + i] = PREDICTION_WEIGHT;
+    work[UE * n + i] = PREDICTION_WEIGHT * u;
     work[KE * n + i] = 0.0;
     work[COUNT * n + i] = 1.0;
+    motion_step(id, false, false);
 }
 
 @compute @workgroup_size(8, 8)

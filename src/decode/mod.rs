@@ -514,7 +514,6 @@ pub(crate) fn finish_window(
         // After the window just before, the first step starts from its motion.
         let predicted = previous.is_some() && params.motion.predicts_start();
         if predicted {
-            motion_predict::predicted_sums(out);
             let kind = motion::StepKind::Predicted;
             motion::motion_step(
                 solver, params, noise_gray, basis, kind, false, previous, out,

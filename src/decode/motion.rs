@@ -127,6 +127,7 @@ pub use super::motion_basis::{MotionBasis, MAX_TURN_RAD};
 use super::motion_blocks::step_in_blocks;
 use super::motion_correct::{correct_row, RowPlanes, Step};
 pub(crate) use super::motion_evidence::{chebyshev3, evidence, gain2, inconsistent};
+use super::motion_predict::correct_predicted_row;
 use super::smooth::{smooth_apart, smooth_planes, Planes};
 use super::{DecodeOutput, DecodeParams, WindowSolver};
 use rayon::prelude::*;
@@ -291,7 +292,12 @@ pub(crate) fn motion_step(
                 ),
                 lit_sum,
             )| {
-                correct_row(
+                let correct = if step.kind == StepKind::Predicted {
+                    correct_predicted_row
+                } else {
+                    correct_row
+                };
+                correct(
                     &step,
                     RowPlanes {
                         phase: split3(phase, w),
@@ -368,8 +374,8 @@ pub(crate) enum StepKind {
     /// From the previous step: the phase planes hold its correction at the values in the
     /// velocity and brightness planes, which it undoes before solving the patch's evidence.
     Refine,
-    /// From rest, to the motion predicted from the previous window: the sums hold the
-    /// prediction (`motion_predict`), taken as they are, unsmoothed.
+    /// From rest, to the motion predicted from the previous window (`motion_predict`): only
+    /// the pixels with a prediction, their sums written from it, unsmoothed.
     Predicted,
 }
 

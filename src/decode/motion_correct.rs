@@ -202,7 +202,12 @@ fn write_lit_sums(basis: &MotionBasis, row: &mut RowPlanes<'_>) {
 
 /// The second pass over the first `m` gathered pixels, copied back to their places in `row`.
 #[inline(always)]
-fn run_gathered(step: &Step<'_>, gathered: &mut Gathered, m: usize, row: &mut RowPlanes<'_>) {
+pub(super) fn run_gathered(
+    step: &Step<'_>,
+    gathered: &mut Gathered,
+    m: usize,
+    row: &mut RowPlanes<'_>,
+) {
     correct_gathered(step, gathered, m);
     let index = gathered.index;
     let planes = gathered.planes();

@@ -12,11 +12,13 @@
 //! **How.** The first step takes each pixel's patch velocity from the previous window, where
 //! that patch moved (significant and solved), as its patch solution: the sums the step solves
 //! are written as evidence of that velocity so strong that the patch solve returns it
-//! ([`PREDICTION_WEIGHT`]), and the step runs without its edge-aware sums. It corrects the pixel
-//! there and writes the evidence linearised there; the configured steps then refine from it as
-//! from any step, each testing its patch's velocity against rest. Elsewhere (a still patch, a
-//! stream's first window, a window after a drop) the first step leaves the still solution and
-//! writes the evidence at rest, as stage 1 did.
+//! ([`PREDICTION_WEIGHT`]), and the step runs without its edge-aware sums, over those pixels
+//! only. It corrects each there and writes the evidence linearised there; the configured steps
+//! then refine from it as from any step, each testing its patch's velocity against rest.
+//! Every other pixel keeps the still solution and stage 1's evidence at rest, so a window with
+//! nothing predicted decodes as from rest, bit for bit (the rig's still hand has a few chance
+//! patches moving, whose pixels and neighbours differ: `tests/motion_predicted_start.rs`). A
+//! stream's first window and one after a drop start from rest.
 //!
 //! **What was measured** (docs/accuracy.md, Motion, stop 54). The previous window's
 //! acceleration (carrying the velocity on by `a·Δt`) and its brightness change as well moved
@@ -24,94 +26,106 @@
 //! left out, so that the GPU, whose planes keep what a pixel refused after the motion step had,
 //! starts from the same values.
 
-use super::DecodeOutput;
-use rayon::prelude::*;
+use super::motion_correct::{run_gathered, RowPlanes, Step, BLOCK};
+use super::motion_moving::{copy_pixel, Gathered};
 
 /// The weight of the written evidence (in the units of the evidence, `1/σ²` per pixel): far
 /// above the priors and any patch's sums, so that the patch solve returns the prediction to
 /// within rounding, and its significance test passes wherever the prediction is not rest.
 pub const PREDICTION_WEIGHT: f32 = 1.0e9;
 
-/// Writes into the step's sums (`unit_re`, `unit_im`, `support` and `motion_evidence`) the
-/// evidence of each pixel's predicted velocity: its patch velocity in the previous window where
-/// that patch moved, else rest, and no brightness change.
-pub(crate) fn predicted_sums(out: &mut DecodeOutput) {
-    let n = out.width * out.height;
-    let (ue, rest) = out.motion_evidence.split_at_mut(n);
-    let (ke, count) = rest.split_at_mut(n);
-    out.unit_re
-        .par_iter_mut()
-        .zip(out.unit_im.par_iter_mut())
-        .zip(out.support.par_iter_mut())
-        .zip(ue.par_iter_mut())
-        .zip(ke.par_iter_mut())
-        .zip(count[..n].par_iter_mut())
-        .zip(out.patch_velocity_px_per_s.par_iter())
-        .zip(out.patch_moving.par_iter())
-        .for_each(
-            |(((((((uu, uk), kk), ue), ke), count), &patch_u), &moving)| {
-                let u = if moving != 0 && patch_u.is_finite() {
-                    patch_u
-                } else {
-                    0.0
-                };
-                *uu = PREDICTION_WEIGHT;
-                *uk = 0.0;
-                *kk = PREDICTION_WEIGHT;
-                *ue = PREDICTION_WEIGHT * u;
-                *ke = 0.0;
-                *count = 1.0;
-            },
-        );
+/// The velocity a pixel starts from: its patch velocity in the previous window where that
+/// patch moved (significant and solved), else none.
+#[inline(always)]
+pub(super) fn predicted_velocity(patch_velocity: f32, patch_moving: u8) -> Option<f32> {
+    (patch_moving != 0 && patch_velocity.is_finite() && patch_velocity != 0.0)
+        .then_some(patch_velocity)
+}
+
+/// The step's sums `(uu, uk, kk, ue, ke, count)` that are evidence of velocity `u` and no
+/// brightness change, so strong that the patch solve returns them.
+pub(super) fn sums_of(u: f32) -> [f32; 6] {
+    [
+        PREDICTION_WEIGHT,
+        0.0,
+        PREDICTION_WEIGHT,
+        PREDICTION_WEIGHT * u,
+        0.0,
+        1.0,
+    ]
+}
+
+/// The predicted step over one row (`step` from rest, not the last): every pixel with a
+/// predicted velocity gets its sums written and the full model there (gathered, as the steps'
+/// second pass runs it), which leaves its correction and its evidence there for the next step;
+/// every other pixel keeps stage 1's evidence at rest and no motion, as a step from rest that
+/// found it still would leave it.
+pub(super) fn correct_predicted_row(step: &Step<'_>, mut row: RowPlanes<'_>) {
+    let w = row.flags.len();
+    let mut gathered = Gathered::default();
+    let mut m = 0;
+    for x in 0..w {
+        let Some(u) = predicted_velocity(row.patch_velocity[x], row.patch_moving[x]) else {
+            row.velocity[x] = 0.0;
+            row.brightness[x] = 0.0;
+            continue;
+        };
+        [
+            row.uu[x],
+            row.uk[x],
+            row.kk[x],
+            row.ue[x],
+            row.ke[x],
+            row.count[x],
+        ] = sums_of(u);
+        if m == BLOCK {
+            run_gathered(step, &mut gathered, m, &mut row);
+            m = 0;
+        }
+        gathered.index[m] = x;
+        copy_pixel(&row, x, &mut gathered.planes(), m);
+        m += 1;
+    }
+    if m > 0 {
+        run_gathered(step, &mut gathered, m, &mut row);
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::decode::WindowSolver;
-    use crate::pattern::{cps_rgb, Axis};
 
     #[test]
     fn the_written_sums_solve_to_the_previous_windows_moving_patches() {
-        let seq = cps_rgb(65, 912.0, Axis::Columns, 8).unwrap();
-        let cross_talk = crate::color::CrossTalk::paper();
-        let solver = WindowSolver::new(&seq, &[0, 1, 2], &cross_talk).unwrap();
-        let mut out = DecodeOutput::new(5, 1, &solver);
-        out.patch_velocity_px_per_s = vec![312.5, f32::NAN, 250.0, -97.25, 40.0];
-        out.patch_moving = vec![1, 1, 0, 1, 1];
-        out.unit_re.fill(f32::NAN);
-        predicted_sums(&mut out);
+        // (patch velocity, moving) → the velocity the step starts from.
+        let cases = [
+            (312.5, 1, Some(312.5)),
+            (f32::NAN, 1, None),
+            (250.0, 0, None),
+            (-97.25, 1, Some(-97.25)),
+            (0.0, 1, None),
+        ];
         // The patch solve of the step (`motion_correct::patch_step`) with the priors of a
         // window whose noise is 1 gray level (the largest they get: σ²/sd², sd 400 px/s and
-        // 20/s) and the significance test it applies.
+        // 20/s), and its significance test at a noise of 100 gray levels.
         let (prior_u, prior_k) = (1.0 / 400f32.powi(2), 1.0 / 20f32.powi(2));
-        let n = out.width;
-        for (x, expected) in [312.5, 0.0, 0.0, -97.25, 40.0].into_iter().enumerate() {
-            let (a, b, c) = (
-                out.unit_re[x] + prior_u,
-                out.unit_im[x],
-                out.support[x] + prior_k,
-            );
-            let (ru, rk, count) = (
-                out.motion_evidence[x],
-                out.motion_evidence[n + x],
-                out.motion_evidence[2 * n + x],
-            );
+        for (patch_u, moving, expected) in cases {
+            assert_eq!(predicted_velocity(patch_u, moving), expected, "{patch_u}");
+            let Some(expected) = expected else { continue };
+            let [uu, uk, kk, ue, ke, count] = sums_of(expected);
+            let (a, b, c) = (uu + prior_u, uk, kk + prior_k);
             let det = a * c - b * b;
-            assert!(det > 0.0 && count > 0.0, "pixel {x}: solvable");
-            let (u, kappa) = ((c * ru - b * rk) / det, (a * rk - b * ru) / det);
+            assert!(det > 0.0 && count > 0.0, "{patch_u}: solvable");
+            let (u, kappa) = ((c * ue - b * ke) / det, (a * ke - b * ue) / det);
             assert!(
                 (u - expected).abs() <= 1e-5 * expected.abs(),
-                "pixel {x}: {u}"
+                "{patch_u}: {u}"
             );
-            assert_eq!(kappa, 0.0, "pixel {x}");
-            // Moving wherever the prediction is not rest, at any noise the windows show (the
-            // significance is χ² over σ², here at σ = 100 gray levels).
+            assert_eq!(kappa, 0.0, "{patch_u}");
             let significance = (a * u * u + 2.0 * b * u * kappa + c * kappa * kappa) / 1e4;
-            assert_eq!(
+            assert!(
                 significance > crate::decode::motion::MOTION_SIGNIFICANCE,
-                expected != 0.0,
-                "pixel {x}"
+                "{patch_u}"
             );
         }
     }

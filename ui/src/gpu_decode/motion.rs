@@ -31,7 +31,7 @@ pub(super) const STATE_PLANES: usize = 9;
 /// Entry points of the model, beyond the still decode's.
 pub const MOTION_STAGES: [&str; 14] = [
     "noise_grid",
-    "predict_sums",
+    "step_predicted",
     "step_horizontal",
     "step_vertical",
     "step_rest",
@@ -47,15 +47,15 @@ pub const MOTION_STAGES: [&str; 14] = [
 ];
 
 /// The entry points of a motion window after the noise is known: when `predicted`, a first
-/// step from the previous window's patch velocities (its sums written, not summed: the CPU's
-/// `motion_predict`); `iterations` steps (the evidence's sums, then the step); the still
+/// step from the previous window's patch velocities (its sums written, not summed, over the
+/// pixels that have one: the CPU's `motion_predict`); `iterations` steps (the evidence's sums, then the step); the still
 /// decode's stages on the corrected phasors (with the moving pixels' wider average of the unit
 /// phasor around the plain one when `wide`), with the settling before the spatial jumps and the
 /// temporal check after them.
 pub(super) fn steps_then_unwrap(iterations: u32, wide: bool, predicted: bool) -> Vec<&'static str> {
     let mut stages = Vec::new();
     if predicted {
-        stages.extend(["predict_sums", "step_rest"]);
+        stages.push("step_predicted");
     }
     for i in 0..iterations {
         let last = i + 1 == iterations;
@@ -234,12 +234,12 @@ mod tests {
         let stages = steps_then_unwrap(2, false, false);
         assert_eq!(stages[2], "step_rest");
         assert_eq!(stages[5], "step_refine_last");
-        // Started from the previous window: the written sums, a step from rest that is not
-        // the last, and every configured step refining.
+        // Started from the previous window: the predicted step, then every configured step
+        // refining.
         let predicted = steps_then_unwrap(2, false, true);
-        assert_eq!(predicted[..2], ["predict_sums", "step_rest"]);
-        assert_eq!(predicted[4], "step_refine");
-        assert_eq!(predicted[7], "step_refine_last");
+        assert_eq!(predicted[0], "step_predicted");
+        assert_eq!(predicted[3], "step_refine");
+        assert_eq!(predicted[6], "step_refine_last");
         let temporal = stages.iter().position(|s| *s == "temporal");
         let jumps = stages.iter().position(|s| *s == "jumps");
         assert!(
