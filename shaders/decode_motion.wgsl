@@ -8,6 +8,9 @@
 //   noise_grid    e²/v on the grid the CPU's noise estimate samples; the host takes the median
 //                 (noise_grid_final does the same on the final planes, with or without the
 //                 model, for the host's mixed-pixel stage)
+//   step_predicted  after the window just before: the pixels whose patch moved there start
+//                 from that velocity (no sums), the others keep stage 1's evidence; every
+//                 configured step then refines
 //   per step      step_horizontal/step_vertical: the evidence's edge-aware sums (plain, at the
 //                 model's decay) of (uu, uk, kk) and (ue, ke, count); then step_rest[_last] or
 //                 step_refine[_last]: the patch's (u, κ), the correction, the next evidence
