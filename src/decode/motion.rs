@@ -99,7 +99,7 @@
 //! there. After the window just before, a first step takes each pixel's patch velocity in that
 //! window (where that patch moved) and corrects from it, and the configured steps refine: the
 //! 20 mm tremor keeps 85.1 % of its moving skin where it kept 82.1 %, the swaying hand's RMS
-//! falls by 1–2 %, for about 2 ms more per 640×400 window (docs/accuracy.md, Motion, stop 54).
+//! falls by 1–2 %, for 0.5–3 ms more per 640×400 window (docs/accuracy.md, Motion, stop 54).
 //!
 //! **Opt-in: the brightness change carried with the image** ([`super::MotionParams::advected_brightness`],
 //! `decode/motion_advect.rs`, CPU only). Where the patch's `κ` is off is mostly near outlines,
