@@ -11,6 +11,7 @@
 //! whose median the host takes, then the steps and the rest.
 
 use super::motion::{self, StreamClock, MODEL_WORDS, MOTION_STAGES};
+pub(super) use super::params::unsupported;
 use super::readback::{
     map_and_wait, read_window, Layout, Timestamps, READBACK_PLANES, TIMESTAMPS, TIMESTAMP_BYTES,
 };
@@ -24,8 +25,7 @@ use std::sync::Arc;
 use std::time::Instant;
 use tremorscan::decode::backend::Window;
 use tremorscan::decode::{
-    broken, edges, motion_basis, DecodeOutput, DecodeParams, MotionBasis, MotionModel,
-    UnwrapMethod, WindowSolver,
+    broken, edges, motion_basis, DecodeOutput, DecodeParams, MotionBasis, MotionModel, WindowSolver,
 };
 
 /// Pipelines and buffers for one image size.
@@ -78,36 +78,6 @@ fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
         },
         count: None,
     }
-}
-
-/// Why `solver` and `params` cannot run on the GPU, if they cannot.
-pub(super) fn unsupported(
-    solver_shape: (usize, usize, usize),
-    params: &DecodeParams,
-) -> Option<String> {
-    let (channels, observations, unknowns) = solver_shape;
-    if channels != 3 || observations != 9 || unknowns != 9 {
-        return Some(format!(
-            "the GPU decoder handles CPS-RGB windows (9 observations, 9 unknowns), not {observations} × {unknowns}"
-        ));
-    }
-    if params.unwrap != UnwrapMethod::ChebyshevRobust {
-        return Some(format!(
-            "the GPU decoder implements the robust Chebyshev unwrap, not {:?}",
-            params.unwrap
-        ));
-    }
-    if params.motion.block_px > 1 {
-        return Some(format!(
-            "the GPU decoder sums the motion model's evidence per pixel, not over blocks of {} px",
-            params.motion.block_px
-        ));
-    }
-    if params.motion.advected_brightness {
-        let why = "the GPU decoder keeps each patch's one brightness change";
-        return Some(format!("{why} (MotionParams::advected_brightness)"));
-    }
-    None
 }
 
 impl GpuDecoder {

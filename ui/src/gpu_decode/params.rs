@@ -1,9 +1,10 @@
-//! The uniform of `shaders/decode.wgsl`, filled from a window solver and the decode settings.
+//! The uniform of `shaders/decode.wgsl`, filled from a window solver and the decode settings,
+//! and which settings the GPU decoder does not implement.
 
 use bytemuck::{Pod, Zeroable};
 use std::f32::consts::PI;
 use tremorscan::decode::smooth::recursion_halo;
-use tremorscan::decode::{DecodeParams, WindowSolver};
+use tremorscan::decode::{DecodeParams, UnwrapMethod, WindowSolver};
 
 /// `Params` of `shaders/decode.wgsl`, byte for byte (112 bytes; the vec3 members are 16-byte
 /// aligned there, which the field order here reproduces).
@@ -84,4 +85,34 @@ impl DecodeUniform {
             halo: recursion_halo(params.unit_decay_at(width)),
         }
     }
+}
+
+/// Why `solver` and `params` cannot run on the GPU, if they cannot.
+pub(crate) fn unsupported(
+    solver_shape: (usize, usize, usize),
+    params: &DecodeParams,
+) -> Option<String> {
+    let (channels, observations, unknowns) = solver_shape;
+    if channels != 3 || observations != 9 || unknowns != 9 {
+        return Some(format!(
+            "the GPU decoder handles CPS-RGB windows (9 observations, 9 unknowns), not {observations} × {unknowns}"
+        ));
+    }
+    if params.unwrap != UnwrapMethod::ChebyshevRobust {
+        return Some(format!(
+            "the GPU decoder implements the robust Chebyshev unwrap, not {:?}",
+            params.unwrap
+        ));
+    }
+    if params.motion.block_px > 1 {
+        return Some(format!(
+            "the GPU decoder sums the motion model's evidence per pixel, not over blocks of {} px",
+            params.motion.block_px
+        ));
+    }
+    if params.motion.advected_brightness {
+        let why = "the GPU decoder keeps each patch's one brightness change";
+        return Some(format!("{why} (MotionParams::advected_brightness)"));
+    }
+    None
 }
