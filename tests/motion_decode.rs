@@ -8,19 +8,15 @@
 //! window's decode, which the same test measures beside it.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
+mod common;
+
 use tremorscan::decode::{DecodeParams, MotionParams};
 use tremorscan::rig::motion_eval::{evaluate_motion, DepthTally, MotionAccuracy};
 use tremorscan::rig::tremor_eval::{fingertip_tremor, FingertipTremor};
-use tremorscan::rig::{RigConfig, VirtualRig};
+use tremorscan::rig::VirtualRig;
 
 fn rig(amplitude_mm: f64, sway_mm: f64, roll_deg: f64) -> VirtualRig {
-    let mut config = RigConfig::paper(640, 400).unwrap();
-    let tremor = config.scene.hand.as_mut().unwrap();
-    tremor.tip_amplitude_mm = amplitude_mm;
-    tremor.sway_amplitude_mm = sway_mm;
-    tremor.roll_amplitude_deg = roll_deg;
-    let seq = config.default_sequence().unwrap();
-    VirtualRig::new(config, seq).unwrap()
+    common::trembling_hand(amplitude_mm, sway_mm, roll_deg)
 }
 
 /// The still skin of `b` against `a`: no less coverage (to 0.1 %), an RMS at most 5 % higher.
@@ -497,44 +493,13 @@ fn a_still_hand_decodes_the_same_with_the_brightness_carried_with_the_image() {
     // on a still hand (where the significance test's chance hits are a few pixels) every other
     // pixel comes out bit for bit as without it, save a few whose neighbours or past moved
     // (measured: 4 pixel-windows moving, 2 others differing, by 4.6·10⁻⁴ px at most, of
-    // 978,814 valid).
-    use tremorscan::decode::{SlidingDecoder, WindowOutcome};
-    let rig = rig(0.0, 0.0, 0.0);
+    // 978,814 valid; with the predicted start, stop 54, 4 others differing).
     let mut advected = DecodeParams::default();
     advected.motion.advected_brightness = true;
-    let decoder = |params| SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params);
-    let (mut plain, mut carried) = (
-        decoder(DecodeParams::default()).unwrap(),
-        decoder(advected).unwrap(),
-    );
-    let mut frame = rig.blank_frame();
-    let (mut compared, mut moving, mut valid, mut differing) = (0, 0, 0, 0);
-    let mut worst_px = 0.0f32;
-    for i in 0..6u64 {
-        rig.render(i, &mut frame, None).unwrap();
-        let decoded = |outcome| match outcome {
-            WindowOutcome::Decoded(out) => {
-                Some((out.coordinate_px.clone(), out.velocity_px_per_s.clone()))
-            }
-            _ => None,
-        };
-        let a = decoded(plain.push(&frame).unwrap());
-        let b = decoded(carried.push(&frame).unwrap());
-        let (Some((a, a_velocity)), Some((b, b_velocity))) = (a, b) else {
-            continue;
-        };
-        for p in 0..a.len() {
-            let moves = a_velocity[p] != 0.0 || b_velocity[p] != 0.0;
-            moving += usize::from(moves);
-            valid += usize::from(a[p].is_finite());
-            if !(moves || a[p].to_bits() == b[p].to_bits()) {
-                differing += 1;
-                worst_px = worst_px.max((a[p] - b[p]).abs());
-            }
-        }
-        compared += 1;
-    }
-    eprintln!("moving {moving}, differing {differing}, worst {worst_px} px, valid {valid}");
+    let rig = rig(0.0, 0.0, 0.0);
+    let c = common::still_pixels_compared(&rig, DecodeParams::default(), advected, 6);
+    let (compared, moving, differing, worst_px, valid) =
+        (c.windows, c.moving, c.differing, c.worst_px, c.valid);
     assert_eq!(compared, 4);
     assert!(moving <= 10, "{moving} pixel-windows moving");
     assert!(differing <= 20, "{differing} still pixel-windows differ");

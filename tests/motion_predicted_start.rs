@@ -7,18 +7,14 @@
 //! ([`tremorscan::rig::motion_eval`]); the sweep's 13 windows per row are in docs/accuracy.md.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
-use tremorscan::decode::{DecodeParams, SlidingDecoder, WindowOutcome};
+mod common;
+
+use tremorscan::decode::DecodeParams;
 use tremorscan::rig::motion_eval::{evaluate_motion, MotionAccuracy};
-use tremorscan::rig::{RigConfig, VirtualRig};
+use tremorscan::rig::VirtualRig;
 
 fn rig(amplitude_mm: f64, sway_mm: f64, roll_deg: f64) -> VirtualRig {
-    let mut config = RigConfig::paper(640, 400).unwrap();
-    let tremor = config.scene.hand.as_mut().unwrap();
-    tremor.tip_amplitude_mm = amplitude_mm;
-    tremor.sway_amplitude_mm = sway_mm;
-    tremor.roll_amplitude_deg = roll_deg;
-    let seq = config.default_sequence().unwrap();
-    VirtualRig::new(config, seq).unwrap()
+    common::trembling_hand(amplitude_mm, sway_mm, roll_deg)
 }
 
 fn from_rest() -> DecodeParams {
@@ -70,39 +66,8 @@ fn a_still_hand_decodes_as_from_rest() {
     // from rest (measured over six windows: 4 pixel-windows moving, 3 others differing, by
     // 9.2·10⁻⁵ px at most, of 1,468,300 valid).
     let rig = rig(0.0, 0.0, 0.0);
-    let decoder = |params| SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params);
-    let (mut rest, mut predicted) = (
-        decoder(from_rest()).unwrap(),
-        decoder(DecodeParams::default()).unwrap(),
-    );
-    let mut frame = rig.blank_frame();
-    let (mut moving, mut valid, mut differing, mut worst_px) = (0, 0, 0, 0f32);
-    for i in 0..8u64 {
-        rig.render(i, &mut frame, None).unwrap();
-        let decoded = |outcome| match outcome {
-            WindowOutcome::Decoded(out) => {
-                Some((out.coordinate_px.clone(), out.velocity_px_per_s.clone()))
-            }
-            _ => None,
-        };
-        let a = decoded(rest.push(&frame).unwrap());
-        let b = decoded(predicted.push(&frame).unwrap());
-        let (Some((a, a_velocity)), Some((b, b_velocity))) = (a, b) else {
-            continue;
-        };
-        for p in 0..a.len() {
-            let moves = a_velocity[p] != 0.0 || b_velocity[p] != 0.0;
-            moving += usize::from(moves);
-            valid += usize::from(a[p].is_finite());
-            if !(moves || a[p].to_bits() == b[p].to_bits()) {
-                differing += 1;
-                if a[p].is_finite() && b[p].is_finite() {
-                    worst_px = worst_px.max((a[p] - b[p]).abs());
-                }
-            }
-        }
-    }
-    eprintln!("{moving} pixel-windows moving, {differing} others differing (worst {worst_px} px) of {valid} valid");
+    let c = common::still_pixels_compared(&rig, from_rest(), DecodeParams::default(), 8);
+    let (moving, differing, valid) = (c.moving, c.differing, c.valid);
     assert!(valid > 1_000_000, "{valid}");
     assert!(moving <= 20, "{moving}");
     assert!(differing <= 20, "{differing}");

@@ -103,3 +103,73 @@ pub fn corrupted_red_rows(
         .unwrap();
     frame
 }
+
+/// The paper rig at 640×400 with the hand's fingertip trembling `amplitude_mm` along the
+/// optical axis, swaying `sway_mm` sideways and rolling `roll_deg` (the motion sweep's rig).
+pub fn trembling_hand(amplitude_mm: f64, sway_mm: f64, roll_deg: f64) -> VirtualRig {
+    let mut config = RigConfig::paper(640, 400).unwrap();
+    let tremor = config.scene.hand.as_mut().unwrap();
+    tremor.tip_amplitude_mm = amplitude_mm;
+    tremor.sway_amplitude_mm = sway_mm;
+    tremor.roll_amplitude_deg = roll_deg;
+    let seq = config.default_sequence().unwrap();
+    VirtualRig::new(config, seq).unwrap()
+}
+
+/// Two decoders' coordinates over the same windows, pixel by pixel, away from motion.
+#[derive(Debug, Default)]
+pub struct StillPixelsCompared {
+    /// Windows both decoded.
+    pub windows: usize,
+    /// Pixel-windows where either decoder found motion (not compared).
+    pub moving: usize,
+    /// Pixel-windows the first decoder found valid.
+    pub valid: usize,
+    /// Pixel-windows without motion whose coordinates differ in any bit (NaN included).
+    pub differing: usize,
+    /// The largest difference among them where both are valid, projector px.
+    pub worst_px: f32,
+}
+
+/// Frames `0..frames` of `rig` through a decoder with `a` and one with `b`, compared as
+/// [`StillPixelsCompared`] says.
+pub fn still_pixels_compared(
+    rig: &VirtualRig,
+    a: DecodeParams,
+    b: DecodeParams,
+    frames: u64,
+) -> StillPixelsCompared {
+    let decoder =
+        |params| SlidingDecoder::new(rig.sequence.clone(), rig.config.cross_talk, params).unwrap();
+    let (mut first, mut second) = (decoder(a), decoder(b));
+    let mut frame = rig.blank_frame();
+    let mut result = StillPixelsCompared::default();
+    for i in 0..frames {
+        rig.render(i, &mut frame, None).unwrap();
+        let decoded = |outcome| match outcome {
+            WindowOutcome::Decoded(out) => {
+                Some((out.coordinate_px.clone(), out.velocity_px_per_s.clone()))
+            }
+            _ => None,
+        };
+        let x = decoded(first.push(&frame).unwrap());
+        let y = decoded(second.push(&frame).unwrap());
+        let (Some((x, x_velocity)), Some((y, y_velocity))) = (x, y) else {
+            continue;
+        };
+        for p in 0..x.len() {
+            let moves = x_velocity[p] != 0.0 || y_velocity[p] != 0.0;
+            result.moving += usize::from(moves);
+            result.valid += usize::from(x[p].is_finite());
+            if !(moves || x[p].to_bits() == y[p].to_bits()) {
+                result.differing += 1;
+                if x[p].is_finite() && y[p].is_finite() {
+                    result.worst_px = result.worst_px.max((x[p] - y[p]).abs());
+                }
+            }
+        }
+        result.windows += 1;
+    }
+    eprintln!("{result:?}");
+    result
+}
