@@ -48,10 +48,10 @@ pub const MOTION_STAGES: [&str; 14] = [
 
 /// The entry points of a motion window after the noise is known: when `predicted`, a first
 /// step from the previous window's patch velocities (its sums written, not summed, over the
-/// pixels that have one: the CPU's `motion_predict`); `iterations` steps (the evidence's sums, then the step); the still
-/// decode's stages on the corrected phasors (with the moving pixels' wider average of the unit
-/// phasor around the plain one when `wide`), with the settling before the spatial jumps and the
-/// temporal check after them.
+/// pixels that have one: the CPU's `motion_predict`); `iterations` steps (the evidence's sums,
+/// then the step); the still decode's stages on the corrected phasors (with the moving pixels'
+/// wider average of the unit phasor around the plain one when `wide`), with the settling
+/// before the spatial jumps and the temporal check after them.
 pub(super) fn steps_then_unwrap(iterations: u32, wide: bool, predicted: bool) -> Vec<&'static str> {
     let mut stages = Vec::new();
     if predicted {

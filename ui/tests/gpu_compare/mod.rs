@@ -19,9 +19,9 @@ pub fn compare(cpu: &DecodeOutput, gpu: &DecodeOutput, motion: bool, follows: bo
     // the swaying hand, four frames): a start 10⁻⁵ off (relative) moved the valid pixels'
     // amplitudes by up to 4.3·10⁻⁵ and their coordinates by 1.8·10⁻⁴ px; GPU against CPU, the
     // second window's amplitudes differed by up to 2.0·10⁻⁴, and 117 pixels' coordinates by
-    // more than 2.5·10⁻⁴ px, at most 7.9·10⁻⁴ px, all in one patch moving at −290 px/s (a
-    // velocity about 0.16 px/s apart). A pixel corrected on one side and not the other differs
-    // by percents (2.7 % measured, below), so such windows are held to 10⁻³.
+    // more than 2.5·10⁻⁴ px, at most 7.9·10⁻⁴ px, all in one patch moving at −290 px/s. A
+    // pixel corrected on one side and not the other differs by percents (2.7 % measured,
+    // below), so such windows are held to 10⁻³.
     let level_bound = match (motion, follows) {
         (false, _) => 1e-5,
         (true, false) => 1e-5 / 0.4,
