@@ -79,7 +79,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut cloud = PointCloud::default();
     let mut image = TextureImage::default();
     let mut frame = rig.blank_frame();
+    let start: u64 = std::env::var("START")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0);
     let mut follower: Option<SkinFollower> = None;
+    let mut flat_follower: Option<SkinFollower> = None;
     let mut template: Vec<f64> = Vec::new();
     let r = 8i64;
     for i in 0..frames {
@@ -89,6 +94,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             _ => continue,
         };
         tri.triangulate(out, &mut cloud)?;
+        if i < start {
+            continue;
+        }
         let (ow, planes) = (out.width, out.frequencies);
         let phase0: Vec<f32> = (0..out.width * out.height)
             .map(|k| out.phase_rad[((k / ow) * planes) * ow + k % ow])
@@ -127,6 +135,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut flat_image = TextureImage::default();
         flat_image.fill_from(&flat_cloud);
         let truth = config.camera.project(&m).unwrap_or((f64::NAN, f64::NAN));
+        match flat_follower.as_mut() {
+            None => {
+                flat_follower = SkinFollower::new(&flat_image, truth, FollowOptions::default()).ok()
+            }
+            Some(f) => {
+                let got = f.follow(&flat_image);
+                print!(
+                    "flaterr {} ",
+                    got.map_or("lost".to_string(), |g| format!(
+                        "{:5.2} {:5.2}",
+                        g.0 - truth.0,
+                        g.1 - truth.1
+                    ))
+                );
+            }
+        }
         match follower.as_mut() {
             None => {
                 follower = Some(SkinFollower::new(&image, truth, FollowOptions::default())?);
@@ -246,6 +270,49 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     }
                 }
                 let sol = nm.try_inverse().map(|m| m * rh).unwrap_or_default();
+                {
+                    // The texture error regressed on the truth texture's gradient, alone and
+                    // modulated by the finest fringe.
+                    let mut nm = nalgebra::SMatrix::<f64, 7, 7>::zeros();
+                    let mut rh = nalgebra::SVector::<f64, 7>::zeros();
+                    let r2 = 2 * r;
+                    for dy in -r2..=r2 {
+                        for dx in -r2..=r2 {
+                            let (x, y) = (
+                                (truth.0 + dx as f64).round() as usize,
+                                (truth.1 + dy as f64).round() as usize,
+                            );
+                            let k = y * image.width + x;
+                            let f = |k: usize| f64::from(flat_image.values[k]);
+                            let gu = 0.5 * (f(k + 1) - f(k - 1));
+                            let gv = 0.5 * (f(k + image.width) - f(k - image.width));
+                            let e = f64::from(image.values[k]) - f(k);
+                            let ph = f64::from(phase0[k]);
+                            let j = nalgebra::SVector::<f64, 7>::from([
+                                gu,
+                                gv,
+                                gu * ph.cos(),
+                                gu * ph.sin(),
+                                gv * ph.cos(),
+                                gv * ph.sin(),
+                                f(k),
+                            ]);
+                            nm += j * j.transpose();
+                            rh += j * e;
+                        }
+                    }
+                    if let Some(inv) = nm.try_inverse() {
+                        let b = inv * rh;
+                        print!(
+                            "reg du {:5.2} dv {:5.2} mod_u {:5.2} mod_v {:5.2} gain {:5.2} ",
+                            b[0],
+                            b[1],
+                            b[2].hypot(b[3]),
+                            b[4].hypot(b[5]),
+                            b[6]
+                        );
+                    }
+                }
                 let kc = truth.0.round() as usize + truth.1.round() as usize * image.width;
                 print!(
                     "fringe_res {:4.1} vel {:7.1} kap {:6.2} ",
