@@ -6,13 +6,17 @@
 //! by the still model (the paper's window, motion ignored) and by the motion model, and compared
 //! with the truth by [`tremorscan::rig::motion_eval`]: coverage, gross errors and RMS of the
 //! moving skin, RMS of the still skin. A second table gives, for the same rigs, what `tremorscan
-//! analyze` reports at the index fingertip's pixel over a 3 s trial against the truth there
-//! ([`tremorscan::rig::tremor_eval`]), or why it reports no figure.
+//! analyze --fixed-pixel` reports at the index fingertip's pixel over a 3 s trial against the
+//! truth there ([`tremorscan::rig::tremor_eval`]), or why it reports no figure. A third gives
+//! what `analyze` reports by default, the control point following the skin it was placed on
+//! ([`tremorscan::rig::skin_eval`]), against the material point: the motion model only, as it
+//! is the decoder such a trial runs.
 
 use crate::sweep::SweepArgs;
 use anyhow::{ensure, Context, Result};
-use tremorscan::decode::{DecodeParams, MotionParams};
+use tremorscan::decode::{frames_averaged, DecodeParams, MotionParams};
 use tremorscan::rig::motion_eval::{evaluate_motion, MotionAccuracy, GROSS_MM};
+use tremorscan::rig::skin_eval::skin_tracking;
 use tremorscan::rig::tremor_eval::{fingertip_tremor, FingertipTremor};
 use tremorscan::rig::{RigConfig, VirtualRig};
 use tremorscan::tremor::{TremorError, TremorReport};
@@ -91,6 +95,7 @@ pub fn run(args: &SweepArgs) -> Result<()> {
     }
     if args.tip_frames > 0 {
         fingertip_table(args)?;
+        followed_table(args)?;
     }
     Ok(())
 }
@@ -159,12 +164,71 @@ fn fingertip_table(args: &SweepArgs) -> Result<()> {
     Ok(())
 }
 
+/// The fingertip trials as a control point that follows the skin measures them, against the
+/// material point it was placed on (figures along each series' principal axis).
+fn followed_table(args: &SweepArgs) -> Result<()> {
+    println!();
+    println!(
+        "Index fingertip followed on the skin (the default of `analyze`), motion model, {} frames; truth: the material point the point was placed on",
+        args.tip_frames
+    );
+    println!();
+    println!(
+        "| peak amplitude | lateral sway | valid | 3D RMS from the material point | peak Hz (truth) | peak-to-peak mm (truth) | error | MDS-UPDRS bin (truth) |"
+    );
+    println!("|---:|---|---:|---:|---:|---:|---:|---:|");
+    let [_, (_, params)] = decoders(args);
+    for sway in [false, true] {
+        for &amplitude_mm in &args.amplitudes_mm {
+            let rig = motion_rig(args.width, args.height, amplitude_mm, sway, args.seed)?;
+            let track = skin_tracking(&rig, params, args.tip_frames, 0)
+                .with_context(|| format!("followed fingertip, amplitude {amplitude_mm} mm"))?
+                .follow;
+            let (measured, truth) =
+                track.principal_figures(frames_averaged(&rig.sequence, &params));
+            let figures = match (&measured, &truth) {
+                (Ok(m), Ok(t)) => format!(
+                    "{} ({}) | {:.2} ({:.2}) | {} | {} ({})",
+                    hz(m),
+                    hz(t),
+                    m.amplitude_peak_to_peak_mm,
+                    t.amplitude_peak_to_peak_mm,
+                    relative_error(m, t),
+                    m.updrs_amplitude_bin,
+                    t.updrs_amplitude_bin,
+                ),
+                (Err(e), _) => format!("{} | – | – | –", missing(e)),
+                (Ok(_), Err(e)) => format!("no truth: {} | – | – | –", missing(e)),
+            };
+            println!(
+                "| {amplitude_mm} mm | {} | {:.1} % | {} | {figures} |",
+                sway_label(sway),
+                100.0 * track.valid_share(),
+                mm(track.rms_mm()),
+            );
+        }
+    }
+    Ok(())
+}
+
+/// A report's peak frequency, Hz, or "none".
+fn hz(r: &TremorReport) -> String {
+    r.peak_frequency_hz
+        .map_or("none".into(), |f| format!("{f:.3}"))
+}
+
+/// The measured peak-to-peak against the truth's, or "–" against a still truth.
+fn relative_error(measured: &TremorReport, truth: &TremorReport) -> String {
+    if truth.amplitude_peak_to_peak_mm > 0.0 {
+        let ratio = measured.amplitude_peak_to_peak_mm / truth.amplitude_peak_to_peak_mm;
+        format!("{:+.1} %", 100.0 * (ratio - 1.0))
+    } else {
+        "–".into()
+    }
+}
+
 /// One row's figures: each measured figure with the truth's in brackets, or why it is missing.
 fn fingertip_cells(tip: &FingertipTremor) -> String {
-    let hz = |r: &TremorReport| {
-        r.peak_frequency_hz
-            .map_or("none".into(), |f| format!("{f:.3}"))
-    };
     let truth = |f: &dyn Fn(&TremorReport) -> String| {
         tip.truth
             .as_ref()

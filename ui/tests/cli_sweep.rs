@@ -1,5 +1,5 @@
 //! `tremorscan sweep` end to end at a small size: the noise table's columns mean what they
-//! say; `--motion`: both tables, every row, and a refused amplitude.
+//! say; `--motion`: the three tables, every row, and a refused amplitude.
 #![allow(clippy::unwrap_used, reason = "tests")]
 
 use std::process::Command;
@@ -13,7 +13,7 @@ fn sweep(args: &[&str]) -> std::process::Output {
 }
 
 #[test]
-fn the_motion_sweep_prints_the_skin_and_the_fingertip_tables() {
+fn the_motion_sweep_prints_the_skin_the_fingertip_and_the_followed_tables() {
     let out = sweep(&[
         "--motion",
         "--width",
@@ -37,8 +37,13 @@ fn the_motion_sweep_prints_the_skin_and_the_fingertip_tables() {
         .lines()
         .filter(|l| l.starts_with("| 5 mm |"))
         .collect();
-    // Two tables × (no sway, sway) × (still, motion).
-    assert_eq!(rows.len(), 8, "{stdout}");
+    // Two tables × (no sway, sway) × (still, motion), then the followed point's table ×
+    // (no sway, sway).
+    assert_eq!(rows.len(), 10, "{stdout}");
+    assert!(
+        stdout.contains("Index fingertip followed on the skin"),
+        "{stdout}"
+    );
     assert!(
         stdout.contains("Index fingertip's pixel, 130 frames"),
         "{stdout}"
@@ -49,7 +54,9 @@ fn the_motion_sweep_prints_the_skin_and_the_fingertip_tables() {
     );
     // Every fingertip row of the motion model has figures with the truth beside them, here
     // within a few per cent and the same bin.
-    for row in rows[4..].iter().filter(|r| r.contains("motion model")) {
+    // The followed point's rows (motion model only) have their figures in the same columns.
+    let fingertip_rows = rows[4..8].iter().filter(|r| r.contains("motion model"));
+    for row in fingertip_rows.chain(&rows[8..]) {
         let cells: Vec<&str> = row.split('|').map(str::trim).collect();
         let error: f64 = cells[7].trim_end_matches(" %").parse().unwrap();
         assert!(error.abs() < 10.0, "{row}");
