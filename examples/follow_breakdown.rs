@@ -42,6 +42,13 @@ fn ncc(img: &TextureImage, t: &[f64], at: (f64, f64), r: i64) -> f64 {
     c / (a * b).sqrt()
 }
 
+/// The index of the pixel nearest `at + (dx, dy)` in an image `width` wide.
+fn index(at: (f64, f64), dx: i64, dy: i64, width: usize) -> usize {
+    let x = (at.0 + dx as f64).round() as usize;
+    let y = (at.1 + dy as f64).round() as usize;
+    y * width + x
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let a: Vec<String> = std::env::args().skip(1).collect();
     let frames: u64 = a[0].parse()?;
@@ -156,11 +163,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 follower = Some(SkinFollower::new(&image, truth, FollowOptions::default())?);
                 for dy in -r..=r {
                     for dx in -r..=r {
-                        let (x, y) = (
-                            (truth.0 + dx as f64).round() as usize,
-                            (truth.1 + dy as f64).round() as usize,
-                        );
-                        template.push(f64::from(image.values[y * image.width + x]));
+                        template.push(f64::from(image.values[index(truth, dx, dy, image.width)]));
                     }
                 }
                 println!("placed {truth:?}");
@@ -171,11 +174,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let mut here = Vec::new();
                 for dy in -r..=r {
                     for dx in -r..=r {
-                        let (x, y) = (
-                            (truth.0 + dx as f64).round() as usize,
-                            (truth.1 + dy as f64).round() as usize,
-                        );
-                        here.push(f64::from(image.values[y * image.width + x]));
+                        here.push(f64::from(image.values[index(truth, dx, dy, image.width)]));
                     }
                 }
                 let vs_flat = ncc(&flat_image, &here, truth, r);
@@ -183,11 +182,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let (mut st, mut se, mut mt, mut me, mut nn2) = (0.0, 0.0, 0.0, 0.0, 0.0);
                     for dy in -r..=r {
                         for dx in -r..=r {
-                            let (x, y) = (
-                                (truth.0 + dx as f64).round() as usize,
-                                (truth.1 + dy as f64).round() as usize,
-                            );
-                            let k = y * image.width + x;
+                            let k = index(truth, dx, dy, image.width);
                             let t = f64::from(flat_image.values[k]);
                             let e = f64::from(image.values[k]) - t;
                             st += t * t;
@@ -237,11 +232,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let mut dsum = 0.0;
                 for dy in -r..=r {
                     for dx in -r..=r {
-                        let (x, y) = (
-                            (truth.0 + dx as f64).round() as usize,
-                            (truth.1 + dy as f64).round() as usize,
-                        );
-                        let k = y * image.width + x;
+                        let k = index(truth, dx, dy, image.width);
                         let l = |c: [u8; 3]| f64::from(c[0]) + f64::from(c[1]) + f64::from(c[2]);
                         let d = l(cloud.colour_rgb[k]) - l(flat_cloud.colour_rgb[k]);
                         d2 += d * d;
@@ -256,11 +247,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let mut rh = nalgebra::Vector3::<f64>::zeros();
                 for dy in -r..=r {
                     for dx in -r..=r {
-                        let (x, y) = (
-                            (truth.0 + dx as f64).round() as usize,
-                            (truth.1 + dy as f64).round() as usize,
-                        );
-                        let k = y * image.width + x;
+                        let k = index(truth, dx, dy, image.width);
                         let l = |c: [u8; 3]| f64::from(c[0]) + f64::from(c[1]) + f64::from(c[2]);
                         let d = l(cloud.colour_rgb[k]) - l(flat_cloud.colour_rgb[k]);
                         let ph = f64::from(phase0[k]);
@@ -278,11 +265,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let r2 = 2 * r;
                     for dy in -r2..=r2 {
                         for dx in -r2..=r2 {
-                            let (x, y) = (
-                                (truth.0 + dx as f64).round() as usize,
-                                (truth.1 + dy as f64).round() as usize,
-                            );
-                            let k = y * image.width + x;
+                            let k = index(truth, dx, dy, image.width);
                             let f = |k: usize| f64::from(flat_image.values[k]);
                             let gu = 0.5 * (f(k + 1) - f(k - 1));
                             let gv = 0.5 * (f(k + image.width) - f(k - image.width));
