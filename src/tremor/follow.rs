@@ -32,13 +32,15 @@
 //! flexion towards the side where the decode window turns singular leaves the texture's
 //! gradient, modulated by the fringe, in the offset image (a pixel's window has no redundancy
 //! left to tell it from texture); the low-passed image (`tremor::texture`) keeps the 10 mm
-//! tremor's fingertip matched in 96 % of the windows. And lateral motion. While the skin moves across a pixel inside the
-//! decode window, the three frames see different albedo, and the fringe terms of the window's
-//! mean no longer cancel; what they leave in the offset image is fringe-shaped, does not move
-//! with the skin, and is as strong as faint texture. Tried and not kept: a quadratic
-//! brightness term in the match (it absorbed texture, not shading), the fringe amplitude as
-//! the image (holes wherever the decode refused a pixel), wider shading boxes and templates
-//! (they reach the finger's outline and its shadow, which do not move with the skin).
+//! tremor's fingertip matched in 96 % of the windows. And lateral motion: while the skin moves
+//! across a pixel inside the decode window, the three frames see different albedo, and the
+//! fringe terms of the window's mean no longer cancel; what they leave in the offset image is
+//! fringe-shaped, does not move with the skin, and is as strong as faint texture. Tried and not
+//! kept: a quadratic brightness term in the match (it absorbed texture, not shading), the
+//! fringe amplitude as the image (holes wherever the decode refused a pixel), wider shading
+//! boxes and templates (they reach the finger's outline and its shadow, which do not move with
+//! the skin), and (2026-12-08) the template taken again at the first slow window when it was
+//! placed on moving skin.
 //!
 //! The 3D position is then read at the matched sub-pixel location by [`locate_subpixel`]:
 //! the neighbourhood's points, outliers removed as [`super::locate`] does, fitted as an affine

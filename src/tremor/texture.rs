@@ -47,7 +47,8 @@ fn low_pass_taps(j: usize, len: usize) -> impl Iterator<Item = (usize, f32)> {
 }
 
 impl TextureImage {
-    /// Fills `self` from `cloud`'s colour: box sums by running column sums, O(1) per pixel.
+    /// Fills `self` from `cloud`'s colour: box sums by running column sums, O(1) per pixel,
+    /// then the low-pass along rows and columns.
     pub fn fill_from(&mut self, cloud: &PointCloud) {
         let (w, h) = (cloud.width, cloud.height);
         self.width = w;
