@@ -8,7 +8,9 @@
 //! and the decoded texture image's error from it (`err_sd`), the fringe-shaped part of the
 //! luminance error (`fringe_res`, gray levels), the decoded velocity and brightness change at
 //! the point, the correlation of the decoded patch and of the template with the noiseless one,
-//! where the decoded patch matches the noiseless one best (`decshift`, px), the valid pixels of
+//! where the decoded patch matches the noiseless one best (`decshift`, px), the error regressed
+//! on the noiseless texture's gradient alone and modulated by the finest fringe (`reg`: px,
+//! the modulation's size and phase), the valid pixels of
 //! the patch, the true pixel of the material point and the follower's (`err`, px).
 //! `TEXTURE` sets the skin's texture contrast, `ADVECTED` the advected brightness, `MOTION_OFF`
 //! the still window.
@@ -287,10 +289,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     if let Some(inv) = nm.try_inverse() {
                         let b = inv * rh;
                         print!(
-                            "reg du {:5.2} dv {:5.2} mod_u {:5.2} mod_v {:5.2} gain {:5.2} ",
+                            "reg du {:5.2} dv {:5.2} mod_u {:5.2} at {:6.1}° mod_v {:5.2} gain {:5.2} ",
                             b[0],
                             b[1],
                             b[2].hypot(b[3]),
+                            b[3].atan2(b[2]).to_degrees(),
                             b[4].hypot(b[5]),
                             b[6]
                         );
